@@ -1,0 +1,42 @@
+"""Error and warning types raised by ipfit.
+
+Every caller error derives from :class:`IpfitError`; the ones about values also derive
+from :class:`ValueError`, so ``except ValueError`` keeps working for users who do not
+know ipfit's types.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "IpfitError",
+    "InvalidInputError",
+    "ReadError",
+    "IpfitWarning",
+    "ConditioningWarning",
+]
+
+
+class IpfitError(Exception):
+    """Base class of every error raised on purpose by ipfit."""
+
+
+class InvalidInputError(IpfitError, ValueError):
+    """An argument has the wrong shape, type or value.
+
+    The message names the parameter, what was expected, what came, and the fix.
+    """
+
+
+class ReadError(InvalidInputError):
+    """A file could not be read as points (missing, empty, truncated, unknown format...).
+
+    The message starts with the file's path.
+    """
+
+
+class IpfitWarning(UserWarning):
+    """Base class of ipfit's warnings."""
+
+
+class ConditioningWarning(IpfitWarning):
+    """A linear system was rank deficient or badly conditioned; the fit may be unstable."""

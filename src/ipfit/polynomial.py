@@ -1,0 +1,369 @@
+"""The fitted model: :class:`ImplicitPolynomial` and the data :class:`Normalization`.
+
+A polynomial keeps the normalisation of the data it was fitted on and evaluates
+f((x − center) / scale): expanding the coefficients back into user coordinates would be
+badly conditioned at high degree, so that is never done.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from types import MappingProxyType
+from typing import Any, Mapping
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from . import basis
+from ._validation import as_points, error
+from .exceptions import InvalidInputError
+
+__all__ = ["Normalization", "ImplicitPolynomial", "FORMAT_NAME", "FORMAT_VERSION"]
+
+FORMAT_NAME = "ipfit"
+FORMAT_VERSION = 1
+_CHUNK = 1 << 16  # rows per evaluation block: bounds the temporary design matrix
+
+
+def _readonly(values: ArrayLike, dtype) -> NDArray:
+    arr = np.array(values, dtype=dtype, copy=True)
+    arr.setflags(write=False)
+    return arr
+
+
+@dataclass(frozen=True, eq=False)
+class Normalization:
+    """Similarity map u = (x − center) / scale used to condition the fit (paper, Section 5).
+
+    >>> norm = Normalization.from_points([[0.0, 0.0], [2.0, 0.0], [1.0, 1.0], [1.0, -1.0]])
+    >>> norm.center.tolist(), norm.scale
+    ([1.0, 0.0], 1.0)
+    """
+
+    center: NDArray[np.float64]
+    scale: float
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "center", _readonly(self.center, np.float64))
+        scale = float(self.scale)
+        if not (math.isfinite(scale) and scale > 0):
+            raise error("scale", "a finite number > 0", repr(self.scale))
+        object.__setattr__(self, "scale", scale)
+
+    @classmethod
+    def from_points(cls, points: ArrayLike) -> "Normalization":
+        """Centre at the mean and divide by the mean distance to it."""
+        pts = as_points(points)
+        center = pts.mean(axis=0)
+        scale = float(np.linalg.norm(pts - center, axis=1).mean())
+        if not scale > 0:
+            raise error("points", "points that are not all identical", "one repeated point",
+                        "Pass a point cloud with some extent.")
+        return cls(center, scale)
+
+    @classmethod
+    def identity(cls, dim: int) -> "Normalization":
+        return cls(np.zeros(dim), 1.0)
+
+    @property
+    def dim(self) -> int:
+        return int(self.center.shape[0])
+
+    def apply(self, points: NDArray) -> NDArray[np.float64]:
+        """User coordinates → normalised coordinates."""
+        return (np.asarray(points, dtype=np.float64) - self.center) / self.scale
+
+    def invert(self, points: NDArray) -> NDArray[np.float64]:
+        """Normalised coordinates → user coordinates."""
+        return np.asarray(points, dtype=np.float64) * self.scale + self.center
+
+    def to_dict(self) -> dict:
+        return {"center": self.center.tolist(), "scale": self.scale}
+
+
+@dataclass(frozen=True, eq=False)
+class ImplicitPolynomial:
+    r"""An implicit polynomial curve (2D) or surface (3D): the zero set of f.
+
+    ``f(x) = Σ_k coefficients[k] · Π_j ((x_j − center_j) / scale) ** exponents[k, j]``.
+
+    Instances are immutable; fitting functions such as :func:`ipfit.fit_3l` build them.
+    Fitted polynomials are in canonical form: unit coefficient norm and f > 0 outside the
+    shape, so ``contains`` is the sign test of the paper's introduction.
+
+    Parameters
+    ----------
+    exponents : (d, dim) int array in the graded order of :func:`ipfit.basis.exponents`.
+    coefficients : (d,) float array.
+    normalization : :class:`Normalization`, default identity.
+    method : name of the fit that produced it, if any.
+    measures : the paper's measures on the fitting data, if known.
+    info : diagnostics of the fit (condition number, rank, ...).
+
+    Examples
+    --------
+    The unit circle x² + y² − 1:
+
+    >>> import numpy as np
+    >>> from ipfit import ImplicitPolynomial
+    >>> circle = ImplicitPolynomial.from_coefficients([-1, 0, 0, 1, 0, 1], dim=2)
+    >>> circle([[1.0, 0.0], [0.0, 2.0]]).tolist()
+    [0.0, 3.0]
+    >>> circle.gradient([[1.0, 0.0]]).tolist()
+    [[2.0, 0.0]]
+    >>> circle.contains([[0.0, 0.0], [3.0, 0.0]]).tolist()
+    [True, False]
+    """
+
+    exponents: NDArray[np.int64]
+    coefficients: NDArray[np.float64]
+    normalization: Normalization = field(default=None)  # type: ignore[assignment]
+    method: str | None = None
+    measures: Mapping[str, float] | None = None
+    info: Mapping[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        exps = _readonly(self.exponents, np.int64)
+        coef = _readonly(self.coefficients, np.float64)
+        if exps.ndim != 2 or exps.shape[1] not in (2, 3):
+            raise error("exponents", "an integer array of shape (d, 2) or (d, 3)", f"shape {exps.shape}")
+        if coef.shape != (exps.shape[0],):
+            raise error("coefficients", f"{exps.shape[0]} values, one per exponent row", f"shape {coef.shape}")
+        if not np.isfinite(coef).all():
+            raise error("coefficients", "finite values", "NaN or inf")
+        degree = int(exps.sum(axis=1).max())
+        if not np.array_equal(exps, basis.exponents(exps.shape[1], degree)):
+            raise error("exponents", "the graded exponent table of ipfit.basis.exponents(dim, degree)",
+                        "another ordering or an incomplete table",
+                        "Build the polynomial with ImplicitPolynomial.from_coefficients.")
+        norm = self.normalization or Normalization.identity(exps.shape[1])
+        if norm.dim != exps.shape[1]:
+            raise error("normalization", f"a {exps.shape[1]}D centre", f"a {norm.dim}D centre")
+        object.__setattr__(self, "exponents", exps)
+        object.__setattr__(self, "coefficients", coef)
+        object.__setattr__(self, "normalization", norm)
+        if self.measures is not None:
+            object.__setattr__(self, "measures", MappingProxyType({k: float(v) for k, v in dict(self.measures).items()}))
+        object.__setattr__(self, "info", MappingProxyType(dict(self.info)))
+
+    # -- construction -------------------------------------------------------------------
+    @classmethod
+    def from_coefficients(cls, coefficients: ArrayLike, dim: int, normalization: Normalization | None = None,
+                          **kwargs) -> "ImplicitPolynomial":
+        """Build from a coefficient vector in graded order; the degree follows from its length."""
+        coef = np.asarray(coefficients, dtype=np.float64).ravel()
+        try:
+            degree = basis.degree_from_n_coefficients(dim, coef.size)
+        except ValueError:
+            raise error("coefficients", f"a length C(g+{dim}, {dim}) for some degree g (e.g. "
+                        + ", ".join(str(basis.n_coefficients(dim, g)) for g in (1, 2, 4, 6)) + ")",
+                        f"length {coef.size}") from None
+        return cls(basis.exponents(dim, degree), coef, normalization, **kwargs)
+
+    def with_coefficients(self, coefficients: ArrayLike, **changes) -> "ImplicitPolynomial":
+        """A copy with other coefficients (same basis and normalisation)."""
+        return replace(self, coefficients=np.asarray(coefficients, dtype=np.float64), **changes)
+
+    # -- properties ---------------------------------------------------------------------
+    @property
+    def dim(self) -> int:
+        return int(self.exponents.shape[1])
+
+    @property
+    def degree(self) -> int:
+        return int(self.exponents.sum(axis=1).max())
+
+    @property
+    def n_coefficients(self) -> int:
+        return int(self.exponents.shape[0])
+
+    @property
+    def center(self) -> NDArray[np.float64]:
+        return self.normalization.center
+
+    @property
+    def scale(self) -> float:
+        return self.normalization.scale
+
+    # -- evaluation ---------------------------------------------------------------------
+    def _normalised(self, points: ArrayLike) -> NDArray[np.float64]:
+        pts = as_points(points, "points", dims=(self.dim,))
+        return self.normalization.apply(pts)
+
+    def evaluate_normalized(self, u: NDArray[np.float64], gradient: bool = False):
+        """f (and ∇_u f) at points already in normalised coordinates, block by block."""
+        n = u.shape[0]
+        values = np.empty(n)
+        grads = np.empty((n, self.dim)) if gradient else None
+        degree = self.degree
+        for start in range(0, n, _CHUNK):
+            block = u[start:start + _CHUNK]
+            if gradient:
+                m, dm = basis.monomials_and_gradients(block, degree)
+                grads[start:start + _CHUNK] = (dm @ self.coefficients).T
+            else:
+                m = basis.monomials(block, self.exponents)
+            values[start:start + _CHUNK] = m @ self.coefficients
+        return (values, grads) if gradient else values
+
+    def __call__(self, points: ArrayLike) -> NDArray[np.float64]:
+        """f at ``points`` (N, dim) in user coordinates."""
+        return self.evaluate_normalized(self._normalised(points))
+
+    def gradient(self, points: ArrayLike) -> NDArray[np.float64]:
+        """∇f at ``points`` in user coordinates (chain rule through the scale), shape (N, dim)."""
+        _, grads = self.evaluate_normalized(self._normalised(points), gradient=True)
+        return grads / self.scale
+
+    def value_and_gradient(self, points: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        values, grads = self.evaluate_normalized(self._normalised(points), gradient=True)
+        return values, grads / self.scale
+
+    def taubin_distance(self, points: ArrayLike) -> NDArray[np.float64]:
+        """First-order distance |f| / ||∇f|| in user units (Taubin 1994)."""
+        values, grads = self.value_and_gradient(points)
+        norm = np.linalg.norm(grads, axis=1)
+        with np.errstate(divide="ignore"):
+            return np.where(norm > 0, np.abs(values) / np.where(norm > 0, norm, 1.0), np.inf)
+
+    def contains(self, points: ArrayLike) -> NDArray[np.bool_]:
+        """True where f < 0: inside the shape for a canonical polynomial (f > 0 outside)."""
+        return self(points) < 0
+
+    # -- canonical form -----------------------------------------------------------------
+    def canonical(self, points: ArrayLike | None = None, normals: ArrayLike | None = None) -> "ImplicitPolynomial":
+        """Unit-norm coefficients with the sign that makes f > 0 outside.
+
+        With ``normals`` (and their ``points``) the sign makes ∇f agree with the normals on
+        average; without them, f is made positive on most of a sphere far from the data.
+        """
+        coef = self.coefficients
+        norm = float(np.linalg.norm(coef))
+        if norm == 0:
+            return self
+        coef = coef / norm
+        probe = self.with_coefficients(coef)
+        if normals is not None and points is not None:
+            grads = probe.gradient(points)
+            agreement = float(np.sum(grads * np.asarray(normals, dtype=np.float64)))
+            sign = -1.0 if agreement < 0 else 1.0
+        else:
+            directions = _sphere_directions(self.dim)
+            values = probe.evaluate_normalized(4.0 * directions)
+            sign = -1.0 if np.sum(np.sign(values)) < 0 else 1.0
+        return probe.with_coefficients(sign * coef)
+
+    # -- JSON ---------------------------------------------------------------------------
+    def to_dict(self) -> dict:
+        out: dict[str, Any] = {
+            "format": FORMAT_NAME,
+            "version": FORMAT_VERSION,
+            "dim": self.dim,
+            "degree": self.degree,
+            "exponents": self.exponents.tolist(),
+            "coefficients": [float(c) for c in self.coefficients],
+            "normalization": self.normalization.to_dict(),
+            "method": self.method,
+        }
+        if self.measures is not None:
+            out["measures"] = dict(self.measures)
+        if self.info:
+            out["info"] = _jsonable(dict(self.info))
+        return out
+
+    def to_json(self, indent: int | None = 1) -> str:
+        return json.dumps(self.to_dict(), indent=indent)
+
+    def save(self, path: str | os.PathLike) -> None:
+        """Write the JSON result atomically (temporary file, then rename)."""
+        from ._atomic import write_text_atomic
+
+        write_text_atomic(path, self.to_json())
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any], source: str = "JSON") -> "ImplicitPolynomial":
+        if not isinstance(data, Mapping) or data.get("format") != FORMAT_NAME:
+            raise InvalidInputError(f"{source}: not an ipfit result (expected \"format\": \"ipfit\"). "
+                                    "Pass a file written by ipfit.")
+        version = data.get("version")
+        if not isinstance(version, int) or version > FORMAT_VERSION:
+            raise InvalidInputError(f"{source}: unsupported ipfit format version {version!r} "
+                                    f"(this ipfit reads up to {FORMAT_VERSION}). Upgrade ipfit.")
+        try:
+            exps = np.asarray(data["exponents"], dtype=np.int64)
+            coef = np.asarray(data["coefficients"], dtype=np.float64)
+            norm_data = data.get("normalization") or {}
+            dim = int(data["dim"]) if "dim" in data else exps.shape[1]
+            norm = Normalization(norm_data.get("center", [0.0] * dim), norm_data.get("scale", 1.0))
+        except (KeyError, TypeError, ValueError) as exc:
+            raise InvalidInputError(f"{source}: malformed ipfit result ({exc}). "
+                                    "Regenerate it with ipfit.") from None
+        measures = data.get("measures")
+        if measures is not None:
+            measures = {k: v for k, v in measures.items() if isinstance(v, (int, float))}
+        return cls(exps, coef, norm, method=data.get("method"), measures=measures,
+                   info=data.get("info") or {})
+
+    @classmethod
+    def from_json(cls, text: str) -> "ImplicitPolynomial":
+        try:
+            data = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise InvalidInputError(f"JSON: not valid JSON ({exc.msg} at line {exc.lineno}). "
+                                    "Pass a file written by ipfit.") from None
+        return cls.from_dict(data)
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> "ImplicitPolynomial":
+        """Read a JSON result written by :meth:`save` (extra keys are ignored)."""
+        from .exceptions import ReadError
+
+        path = Path(path)
+        try:
+            text = path.read_text(encoding="utf-8")
+        except FileNotFoundError:
+            raise ReadError(f"{path}: no such file. Check the path.") from None
+        except (OSError, UnicodeDecodeError) as exc:
+            raise ReadError(f"{path}: cannot be read ({exc.__class__.__name__}). Check the file.") from None
+        try:
+            data = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise ReadError(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno}). "
+                            "Pass a result written by ipfit.") from None
+        try:
+            return cls.from_dict(data, source=str(path))
+        except InvalidInputError as exc:
+            raise ReadError(str(exc)) from None
+
+    def __repr__(self) -> str:
+        return (f"ImplicitPolynomial(dim={self.dim}, degree={self.degree}, "
+                f"n_coefficients={self.n_coefficients}, method={self.method!r})")
+
+
+def _sphere_directions(dim: int, n: int = 64) -> NDArray[np.float64]:
+    if dim == 2:
+        t = 2 * np.pi * (np.arange(n) + 0.5) / n
+        return np.column_stack([np.cos(t), np.sin(t)])
+    i = np.arange(n) + 0.5
+    z = 1 - 2 * i / n
+    r = np.sqrt(1 - z * z)
+    phi = np.pi * (1 + 5 ** 0.5) * i
+    return np.column_stack([r * np.cos(phi), r * np.sin(phi), z])
+
+
+def _jsonable(value):
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
