@@ -1,0 +1,65 @@
+import numpy as np
+import pytest
+
+from ipfit import basis
+
+TABLE_1 = {2: {1: 3, 2: 6, 4: 15, 6: 28, 8: 45, 10: 66, 12: 91, 14: 120, 16: 153},
+           3: {1: 4, 2: 10, 4: 35, 6: 84, 8: 165, 10: 286, 12: 455, 14: 680, 16: 969}}
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_coefficient_counts_match_paper_table_1(dim):
+    for degree, count in TABLE_1[dim].items():
+        assert basis.n_coefficients(dim, degree) == count
+        assert basis.exponents(dim, degree).shape == (count, dim)
+        assert basis.degree_from_n_coefficients(dim, count) == degree
+
+
+def test_graded_order_starts_like_the_paper():
+    assert basis.exponents(3, 2).tolist()[:5] == [[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [2, 0, 0]]
+    exps = basis.exponents(2, 6)
+    assert np.all(np.diff(exps.sum(axis=1)) >= 0)
+    assert len({tuple(e) for e in exps.tolist()}) == len(exps)
+
+
+def test_degree_from_count_rejects_non_counts():
+    with pytest.raises(ValueError, match="not the number of coefficients"):
+        basis.degree_from_n_coefficients(2, 7)
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_monomials_match_direct_powers(dim, rng):
+    pts = rng.normal(size=(50, dim))
+    exps = basis.exponents(dim, 5)
+    expected = np.prod(pts[:, None, :] ** exps[None, :, :], axis=2)
+    np.testing.assert_allclose(basis.monomials(pts, exps), expected, rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+@pytest.mark.parametrize("degree", range(1, 11))
+def test_gradients_agree_with_central_differences(dim, degree, rng):
+    pts = rng.uniform(-1.2, 1.2, size=(20, dim))
+    coef = rng.normal(size=basis.n_coefficients(dim, degree))
+    m, dm = basis.monomials_and_gradients(pts, degree)
+    exps = basis.exponents(dim, degree)
+    grad = (dm @ coef).T
+    h = 1e-6
+    for k in range(dim):
+        step = np.zeros(dim)
+        step[k] = h
+        fd = (basis.monomials(pts + step, exps) @ coef - basis.monomials(pts - step, exps) @ coef) / (2 * h)
+        np.testing.assert_allclose(grad[:, k], fd, rtol=1e-6, atol=1e-6 * np.abs(fd).max())
+    np.testing.assert_allclose(m @ coef, basis.monomials(pts, exps) @ coef)
+
+
+def test_derivative_map_of_a_known_polynomial():
+    # f = 3x²y + 2y² - x  ->  ∂f/∂x = 6xy - 1, ∂f/∂y = 3x² + 4y
+    exps = basis.exponents(2, 3)
+    index = {tuple(e): i for i, e in enumerate(exps.tolist())}
+    a = np.zeros(len(exps))
+    a[index[(2, 1)]], a[index[(0, 2)]], a[index[(1, 0)]] = 3, 2, -1
+    low = {tuple(e): i for i, e in enumerate(basis.exponents(2, 2).tolist())}
+    dx = basis.derivative_map(2, 3, 0) @ a
+    dy = basis.derivative_map(2, 3, 1) @ a
+    assert dx[low[(1, 1)]] == 6 and dx[low[(0, 0)]] == -1 and np.count_nonzero(dx) == 2
+    assert dy[low[(2, 0)]] == 3 and dy[low[(0, 1)]] == 4 and np.count_nonzero(dy) == 2

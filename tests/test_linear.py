@@ -1,0 +1,194 @@
+"""Linear fits against exact shapes, invariances, the ridge penalty and bad input."""
+
+import warnings
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+import ipfit
+from ipfit import basis
+from ipfit.datasets import synthetic
+from ipfit.linear import LINEAR_METHODS, fit_linear, ridge_penalty
+
+EXACT_SHAPES = {
+    "circle": (lambda: synthetic.circle(120, radius=2.5, center=(1.0, -3.0)), (2, 4)),
+    "ellipse": (lambda: synthetic.ellipse(150, a=3.0, b=1.2, center=(-2.0, 0.5)), (2, 4)),
+    "sphere": (lambda: synthetic.sphere(400, radius=0.5, center=(1.0, 2.0, -1.0)), (2, 4)),
+    "torus": (lambda: synthetic.torus(1200, major=1.0, minor=0.4), (4,)),
+}
+
+# 3L targets ±c at distance c, but a polynomial of the shape's degree cannot be an exact signed
+# distance off a curved shape: the zero set shifts by O(c² · curvature) with c = 0.05
+# normalised units, i.e. about 1e-3 (measured up to 7e-3 on the torus, whose tube is thin).
+TOLERANCE = {"3l": 1e-2, "ridge": 1e-2}
+# Gradient-one asks ∇f = n: where no polynomial of that degree has unit gradient on the shape
+# (an ellipse, a torus) the zero set is pulled off in proportion to μ (default 0.01; measured
+# 1.2e-2 on the 3:1.2 ellipse at degree 2 and 1.3e-2 on the torus).
+TOLERANCE["gradient_one"] = 3e-2
+
+
+def _max_taubin(poly, points):
+    return float(np.max(poly.taubin_distance(points)) / poly.scale)
+
+
+@pytest.mark.parametrize("name", EXACT_SHAPES)
+@pytest.mark.parametrize("method", ["lstsq", "taubin"])
+def test_exact_methods_recover_exact_shapes(name, method):
+    make, degrees = EXACT_SHAPES[name]
+    shape = make()
+    for degree in degrees:
+        poly = fit_linear(shape.points, None, degree, method)
+        assert _max_taubin(poly, shape.points) < 1e-8
+
+
+@pytest.mark.parametrize("name", EXACT_SHAPES)
+@pytest.mark.parametrize("method", ["3l", "ridge", "gradient_one"])
+def test_normal_methods_recover_exact_shapes_within_tolerance(name, method):
+    make, degrees = EXACT_SHAPES[name]
+    shape = make()
+    params = {"kappa": 1e-6} if method == "ridge" else {}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ipfit.ConditioningWarning)  # exact data: non-unique solutions
+        for degree in degrees:
+            poly = fit_linear(shape.points, shape.normals, degree, method, **params)
+            assert _max_taubin(poly, shape.points) < TOLERANCE[method]
+            # the gradient points along the outward normals
+            grad = poly.gradient(shape.points)
+            cos = np.sum(grad * shape.normals, axis=1) / np.linalg.norm(grad, axis=1)
+            assert cos.min() > 0.9
+
+
+def test_3l_on_the_circle_at_degree_two_is_the_circle():
+    shape = synthetic.circle(100, radius=2.0)
+    poly = ipfit.fit_3l(shape.points, shape.normals, 2)
+    exact = shape.polynomial.canonical()
+    np.testing.assert_allclose(poly.coefficients[[3, 5]] / poly.coefficients[0], exact.coefficients[[3, 5]] / exact.coefficients[0] * 4, rtol=5e-3)
+
+
+def test_fits_are_canonical():
+    shape = synthetic.ellipse(100)
+    for method in LINEAR_METHODS:
+        poly = fit_linear(shape.points, shape.normals, 2, method)
+        assert np.linalg.norm(poly.coefficients) == pytest.approx(1.0)
+        assert poly([[0.0, 0.0]])[0] < 0 < poly([[10.0, 0.0]])[0]
+        assert poly.method == method
+        assert "condition_number" in poly.info
+
+
+def _blob(dim, rng):
+    """A smooth star-shaped, slightly noisy closed shape that no low-degree polynomial fits exactly."""
+    if dim == 2:
+        t = np.sort(rng.uniform(0, 2 * np.pi, 300))
+        r = 1 + 0.25 * np.cos(3 * t) + 0.1 * np.sin(2 * t) + rng.normal(0, 0.005, t.size)
+        pts = np.column_stack([r * np.cos(t), r * np.sin(t)])
+        tang = np.roll(pts, -1, axis=0) - np.roll(pts, 1, axis=0)
+        nrm = np.column_stack([tang[:, 1], -tang[:, 0]])
+    else:
+        d = rng.normal(size=(800, 3))
+        d /= np.linalg.norm(d, axis=1, keepdims=True)
+        r = 1 + 0.2 * d[:, 0] ** 2 - 0.15 * d[:, 1] * d[:, 2]
+        pts = d * r[:, None] * [1.5, 1.0, 0.8]
+        nrm = pts / np.array([1.5, 1.0, 0.8]) ** 2  # approximate outward normals
+    return pts, nrm / np.linalg.norm(nrm, axis=1, keepdims=True)
+
+
+def _transform(dim, rng):
+    rot = Rotation.random(random_state=rng).as_matrix() if dim == 3 else None
+    if dim == 2:
+        angle = rng.uniform(0, 2 * np.pi)
+        rot = np.array([[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]])
+    return rot, rng.uniform(0.01, 100), rng.normal(0, 50, dim)
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+@pytest.mark.parametrize("method", ["taubin", "3l", "ridge", "gradient_one"])
+def test_rotation_translation_scale_give_the_same_zero_set(dim, method, rng):
+    pts, nrm = _blob(dim, rng)
+    rot, scale, shift = _transform(dim, rng)
+    moved = scale * pts @ rot.T + shift
+    moved_normals = nrm @ rot.T
+    before = fit_linear(pts, nrm, 4, method)
+    after = fit_linear(moved, moved_normals, 4, method)
+    d_before = before.taubin_distance(pts)
+    d_after = after.taubin_distance(moved) / scale
+    np.testing.assert_allclose(d_after, d_before, rtol=1e-5, atol=1e-9)
+    # and the zero set itself: points of the fitted curve/surface map onto it
+    grad = before.gradient(pts)
+    on_zero_set = pts - (before(pts) / np.sum(grad**2, axis=1))[:, None] * grad  # one Newton step
+    mapped = scale * on_zero_set @ rot.T + shift
+    assert np.max(np.abs(after.taubin_distance(mapped)) / scale) < 10 * np.max(before.taubin_distance(on_zero_set)) + 1e-9
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_classic_least_squares_is_translation_and_scale_invariant(dim, rng):
+    pts, nrm = _blob(dim, rng)
+    before = ipfit.fit_lstsq(pts, 4)
+    after = ipfit.fit_lstsq(pts * 3.7 - 12.0, 4)
+    np.testing.assert_allclose(after.taubin_distance(pts * 3.7 - 12.0) / 3.7, before.taubin_distance(pts), rtol=1e-6, atol=1e-9)
+
+
+def _homogeneous_rotated(coef, exps, rot, rng):
+    """Coefficients of x ↦ f(Rᵀx) for a polynomial f, by interpolation at random points."""
+    pts = rng.normal(size=(4 * len(exps), exps.shape[1]))
+    values = basis.monomials(pts @ rot, exps) @ coef  # rows of pts @ rot are Rᵀx
+    solved, *_ = np.linalg.lstsq(basis.monomials(pts, exps), values, rcond=None)
+    return solved
+
+
+@pytest.mark.parametrize("dim,degree", [(2, 4), (3, 2), (3, 4), (3, 6)])
+def test_ridge_penalty_is_rotation_invariant_on_homogeneous_forms(dim, degree, rng):
+    exps = basis.exponents(dim, degree)
+    top = exps.sum(axis=1) == degree
+    coef = np.where(top, rng.normal(size=len(exps)), 0.0)
+    rot, _, _ = _transform(dim, rng)
+    rotated = _homogeneous_rotated(coef, exps, rot, rng)
+    assert np.abs(rotated[~top]).max() < 1e-8  # still homogeneous
+    d = ridge_penalty(rng.normal(size=(30, dim)), exps)
+    assert rotated @ (d * rotated) == pytest.approx(coef @ (d * coef), rel=1e-8)
+
+
+def test_ridge_penalty_by_hand():
+    u = np.array([[1.0, 0.0], [0.0, 2.0]])  # ||u||² = 1, 4
+    d = ridge_penalty(u, basis.exponents(2, 2))
+    # γ0 = 2, γ1 = 1 + 4 = 5, γ2 = 1 + 16 = 17; weights α!/|α|!: 1; 1, 1; 1, 1/2, 1
+    np.testing.assert_allclose(d, [2, 5, 5, 17, 8.5, 17])
+
+
+def test_ridge_with_zero_kappa_is_3l(rng):
+    pts, nrm = _blob(2, rng)
+    a = ipfit.fit_ridge(pts, nrm, 4, kappa=0.0)
+    b = ipfit.fit_3l(pts, nrm, 4)
+    np.testing.assert_allclose(a.coefficients, b.coefficients, atol=1e-10)
+
+
+def test_larger_kappa_gives_a_rounder_fit(rng):
+    pts, nrm = _blob(2, rng)
+    dists = [np.mean(ipfit.fit_ridge(pts, nrm, 6, kappa=k).taubin_distance(pts)) for k in (0.0, 1e-3, 1e-1)]
+    assert dists[0] < dists[1] < dists[2]
+
+
+# -- bad input -------------------------------------------------------------------------
+GOOD = synthetic.circle(50)
+
+
+@pytest.mark.parametrize("call,match", [
+    (lambda: ipfit.fit_3l(np.zeros((10, 4)), np.ones((10, 4)), 2), r"points: expected an array of shape \(N, 2\) or \(N, 3\)"),
+    (lambda: ipfit.fit_lstsq(np.zeros(10), 2), r"points: expected an array of shape"),
+    (lambda: ipfit.fit_lstsq(GOOD.points[:10], 4), r"at least 15 points .* got 10 points. Pass more points or lower the degree"),
+    (lambda: ipfit.fit_lstsq(np.where(np.arange(50)[:, None] == 3, np.nan, GOOD.points), 2), r"finite coordinates, got 1 rows with NaN or inf \(first at row 3\)"),
+    (lambda: ipfit.fit_lstsq(np.where(np.arange(50)[:, None] == 7, np.inf, GOOD.points), 2), r"NaN or inf \(first at row 7\)"),
+    (lambda: ipfit.fit_3l(GOOD.points, None, 2), r"normals: expected .*required by fit_3l.* got None. Pass the file's normals or ipfit.estimate_normals"),
+    (lambda: ipfit.fit_ridge(GOOD.points, np.zeros_like(GOOD.points), 2), r"non-zero normal vectors, got 50 zero-length normals"),
+    (lambda: ipfit.fit_gradient_one(GOOD.points, GOOD.normals[:20], 2), r"normals: expected shape \(50, 2\) to match the points"),
+    (lambda: ipfit.fit_3l(GOOD.points, GOOD.normals, 0), r"degree: expected an integer >= 1, got 0"),
+    (lambda: ipfit.fit_lstsq(GOOD.points, 2.5), r"degree: expected an integer >= 1"),
+    (lambda: ipfit.fit_3l(GOOD.points, GOOD.normals, 2, c=-1), r"c: expected a number > 0"),
+    (lambda: ipfit.fit_linear(GOOD.points, GOOD.normals, 2, method="nope"), r"method: expected one of 'lstsq', 'taubin', '3l', 'ridge', 'gradient_one'"),
+    (lambda: ipfit.fit_lstsq([["a", "b"]], 2), r"points: expected an \(N, 2\) or \(N, 3\) array of numbers"),
+])
+def test_bad_input_names_the_problem_and_the_fix(call, match):
+    with pytest.raises(ValueError, match=match) as info:
+        call()
+    assert isinstance(info.value, ipfit.InvalidInputError)
+    assert "\n" not in str(info.value)
