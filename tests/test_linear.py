@@ -184,7 +184,7 @@ GOOD = synthetic.circle(50)
     (lambda: ipfit.fit_3l(GOOD.points, GOOD.normals, 0), r"degree: expected an integer >= 1, got 0"),
     (lambda: ipfit.fit_lstsq(GOOD.points, 2.5), r"degree: expected an integer >= 1"),
     (lambda: ipfit.fit_3l(GOOD.points, GOOD.normals, 2, c=-1), r"c: expected a number > 0"),
-    (lambda: ipfit.fit_linear(GOOD.points, GOOD.normals, 2, method="nope"), r"method: expected one of 'lstsq', 'taubin', '3l', 'ridge', 'gradient_one'"),
+    (lambda: ipfit.fit_linear(GOOD.points, GOOD.normals, 2, method="nope"), r"method: expected one of 'lstsq', 'taubin', '3l', 'ridge', 'gradient_one', '3l-far'"),
     (lambda: ipfit.fit_lstsq([["a", "b"]], 2), r"points: expected an \(N, 2\) or \(N, 3\) array of numbers"),
 ])
 def test_bad_input_names_the_problem_and_the_fix(call, match):

@@ -19,6 +19,7 @@ __all__ = [
     "as_points",
     "as_normals",
     "check_degree",
+    "check_real",
     "check_positive",
     "check_nonnegative",
     "check_probability",
@@ -111,28 +112,28 @@ def check_degree(degree: Any, name: str = "degree") -> int:
     return int(degree)
 
 
-def _check_real(value: Any, name: str) -> float:
+def check_real(value: Any, name: str) -> float:
     if isinstance(value, bool) or not isinstance(value, numbers.Real) or not np.isfinite(value):
         raise error(name, "a finite real number", _describe(value))
     return float(value)
 
 
 def check_positive(value: Any, name: str) -> float:
-    value = _check_real(value, name)
+    value = check_real(value, name)
     if value <= 0:
         raise error(name, "a number > 0", str(value))
     return value
 
 
 def check_nonnegative(value: Any, name: str) -> float:
-    value = _check_real(value, name)
+    value = check_real(value, name)
     if value < 0:
         raise error(name, "a number >= 0", str(value))
     return value
 
 
 def check_probability(value: Any, name: str) -> float:
-    value = _check_real(value, name)
+    value = check_real(value, name)
     if not 0.0 <= value <= 1.0:
         raise error(name, "a number in [0, 1]", str(value))
     return value

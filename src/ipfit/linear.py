@@ -38,6 +38,8 @@ __all__ = [
     "DEFAULT_OFFSET",
     "DEFAULT_KAPPA",
     "DEFAULT_MU",
+    "DEFAULT_FAR_WEIGHT",
+    "far_field_samples",
 ]
 
 #: 3L offset in normalised units (the data's mean distance to its centre is 1): small
@@ -49,6 +51,9 @@ DEFAULT_KAPPA = 1e-4
 #: so μ only trades zero-set accuracy against unit gradients: on an exact 3:1.2 ellipse at
 #: degree 2 the largest zero-set error is 0.11 for μ = 1, 0.06 for 0.1 and 0.012 for 0.01.
 DEFAULT_MU = 0.01
+#: Default far-field weight of the "3l-far" method: the far-field rows' share of the system's
+#: total weight (see :func:`far_field_rows`).
+DEFAULT_FAR_WEIGHT = 0.1
 _RCOND = 1e-13  # relative singular-value cut-off of the triangular solves
 
 
@@ -161,9 +166,54 @@ def _three_level_rows(problem: _Problem, c: float) -> tuple[NDArray, NDArray]:
     return problem.design(stacked), targets
 
 
-def _solve_3l(problem: _Problem, c: float = DEFAULT_OFFSET) -> tuple[NDArray, dict]:
+def far_field_samples(u: NDArray[np.float64], normals: NDArray[np.float64], *, c: float = DEFAULT_OFFSET,
+                      margin: float = 0.25, per_axis: int | None = None,
+                      clearance: float = 3.0) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Grid samples of the data's box (plus ``margin``) away from the data, with signed distances.
+
+    Samples closer to the data than ``clearance · c`` are dropped (near the data the 3L
+    rows already speak). The target is the distance to the nearest data point, signed by
+    that point's normal: positive outside, negative inside. The grid is regular, so fits
+    stay deterministic.
+
+    Returns
+    -------
+    samples : (M, dim) array, in the same (normalised) coordinates as ``u``.
+    targets : (M,) signed distances.
+    """
+    from scipy.spatial import cKDTree
+
+    dim = u.shape[1]
+    lo, hi = u.min(axis=0), u.max(axis=0)
+    pad = margin * (hi - lo)
+    count = per_axis or (40 if dim == 2 else 16)
+    axes = [np.linspace(a - p, b + p, count) for a, b, p in zip(lo, hi, pad)]
+    grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, dim)
+    dist, nearest = cKDTree(u).query(grid, workers=-1)
+    keep = dist > clearance * c
+    grid, dist, nearest = grid[keep], dist[keep], nearest[keep]
+    side = np.einsum("ij,ij->i", grid - u[nearest], normals[nearest])
+    return grid, np.where(side < 0, -dist, dist)
+
+
+def _with_far_field(problem: _Problem, a_mat: NDArray, b: NDArray, far_weight: float, c: float):
+    """Append far-field rows whose total weight is ``far_weight`` times the data rows' weight."""
+    if far_weight <= 0:
+        return a_mat, b, 0
+    samples, targets = far_field_samples(problem.u, problem.normals, c=c)
+    if len(samples) == 0:
+        return a_mat, b, 0
+    root = np.sqrt(far_weight * len(b) / len(samples))
+    return (np.concatenate([a_mat, root * problem.design(samples)]),
+            np.concatenate([b, root * targets]), len(samples))
+
+
+def _solve_3l(problem: _Problem, c: float = DEFAULT_OFFSET, far_weight: float = 0.0) -> tuple[NDArray, dict]:
     a_mat, b = _three_level_rows(problem, c)
-    return _qr_solve(a_mat, b, "fit_3l")
+    a_mat, b, n_far = _with_far_field(problem, a_mat, b, far_weight, c)
+    coef, info = _qr_solve(a_mat, b, "fit_3l")
+    info.update(far_weight=far_weight, far_samples=n_far)
+    return coef, info
 
 
 def ridge_penalty(u: NDArray[np.float64], exps: NDArray[np.int64]) -> NDArray[np.float64]:
@@ -180,21 +230,25 @@ def ridge_penalty(u: NDArray[np.float64], exps: NDArray[np.int64]) -> NDArray[np
     return gamma[total] * multinomial_inverse
 
 
-def _solve_ridge(problem: _Problem, c: float = DEFAULT_OFFSET, kappa: float = DEFAULT_KAPPA) -> tuple[NDArray, dict]:
+def _solve_ridge(problem: _Problem, c: float = DEFAULT_OFFSET, kappa: float = DEFAULT_KAPPA,
+                 far_weight: float = 0.0) -> tuple[NDArray, dict]:
     a_mat, b = _three_level_rows(problem, c)
+    a_mat, b, n_far = _with_far_field(problem, a_mat, b, far_weight, c)
     penalty = ridge_penalty(problem.u, problem.exponents)
     coef, info = _qr_solve(a_mat, b, "fit_ridge", extra_rows=np.diag(np.sqrt(kappa * penalty)))
-    info["kappa"] = kappa
+    info.update(kappa=kappa, far_weight=far_weight, far_samples=n_far)
     return coef, info
 
 
-def _solve_gradient_one(problem: _Problem, mu: float = DEFAULT_MU) -> tuple[NDArray, dict]:
+def _solve_gradient_one(problem: _Problem, mu: float = DEFAULT_MU, far_weight: float = 0.0,
+                        c: float = DEFAULT_OFFSET) -> tuple[NDArray, dict]:
     m, dm = basis.monomials_and_gradients(problem.u, problem.degree)
     root = np.sqrt(mu)
     a_mat = np.concatenate([m, root * dm.reshape(-1, m.shape[1])])
     b = np.concatenate([np.zeros(len(m)), root * problem.normals.T.ravel()])
+    a_mat, b, n_far = _with_far_field(problem, a_mat, b, far_weight, c)
     coef, info = _qr_solve(a_mat, b, "fit_gradient_one")
-    info["mu"] = mu
+    info.update(mu=mu, far_weight=far_weight, far_samples=n_far)
     return coef, info
 
 
@@ -210,6 +264,8 @@ LINEAR_METHODS: dict[str, _Method] = {
     "3l": _Method(_solve_3l, needs_normals=True),
     "ridge": _Method(_solve_ridge, needs_normals=True),
     "gradient_one": _Method(_solve_gradient_one, needs_normals=True),
+    "3l-far": _Method(lambda problem, **p: _solve_3l(problem, **{"far_weight": DEFAULT_FAR_WEIGHT, **p}),
+                      needs_normals=True),
 }
 
 
@@ -267,12 +323,18 @@ def fit_taubin(points: ArrayLike, degree: int, normals: ArrayLike | None = None)
     return _fit("taubin", points, normals, degree)
 
 
-def fit_3l(points: ArrayLike, normals: ArrayLike, degree: int, c: float = DEFAULT_OFFSET) -> ImplicitPolynomial:
+def fit_3l(points: ArrayLike, normals: ArrayLike, degree: int, c: float = DEFAULT_OFFSET,
+           far_weight: float = 0.0) -> ImplicitPolynomial:
     """The 3L algorithm (Blane et al. 2000).
 
     Each point is offset by ±c along its unit normal (c in normalised units, where the
     data's mean distance to its centre is 1); the targets are +c outside, 0 on the data and
     −c inside, and the 3N×d system is solved by QR.
+
+    ``far_weight > 0`` adds far-field rows (:func:`far_field_samples`): grid samples of the
+    box away from the data whose target is their signed distance to the data, with that
+    share of the system's total weight. They keep the zero set from growing extra sheets
+    away from the data; 0 (the default) is the paper's 3L.
 
     >>> from ipfit import fit_3l
     >>> from ipfit.datasets.synthetic import circle
@@ -281,11 +343,12 @@ def fit_3l(points: ArrayLike, normals: ArrayLike, degree: int, c: float = DEFAUL
     >>> bool(abs(poly([[1.0, 0.0]])[0]) < 1e-9)
     True
     """
-    return _fit("3l", points, normals, degree, c=check_positive(c, "c"))
+    return _fit("3l", points, normals, degree, c=check_positive(c, "c"),
+                far_weight=check_nonnegative(far_weight, "far_weight"))
 
 
 def fit_ridge(points: ArrayLike, normals: ArrayLike, degree: int, kappa: float = DEFAULT_KAPPA,
-              c: float = DEFAULT_OFFSET) -> ImplicitPolynomial:
+              c: float = DEFAULT_OFFSET, far_weight: float = 0.0) -> ImplicitPolynomial:
     """3L with ridge regression: a = argmin ||A a − b||² + κ aᵀDa (paper, Section 5.5).
 
     ``D`` is :func:`ridge_penalty` (rotation invariant). Because γ_t sums over the N data
@@ -300,10 +363,11 @@ def fit_ridge(points: ArrayLike, normals: ArrayLike, degree: int, kappa: float =
     True
     """
     return _fit("ridge", points, normals, degree, c=check_positive(c, "c"),
-                kappa=check_nonnegative(kappa, "kappa"))
+                kappa=check_nonnegative(kappa, "kappa"), far_weight=check_nonnegative(far_weight, "far_weight"))
 
 
-def fit_gradient_one(points: ArrayLike, normals: ArrayLike, degree: int, mu: float = DEFAULT_MU) -> ImplicitPolynomial:
+def fit_gradient_one(points: ArrayLike, normals: ArrayLike, degree: int, mu: float = DEFAULT_MU,
+                     far_weight: float = 0.0) -> ImplicitPolynomial:
     """Tasdizen's gradient-one fit: minimise Σ f(x_i)² + μ Σ ||∇f(x_i) − n_i||².
 
     Asking ∇f to equal the unit normal on the data makes f close to a signed distance there.
@@ -315,14 +379,19 @@ def fit_gradient_one(points: ArrayLike, normals: ArrayLike, degree: int, mu: flo
     >>> bool(abs(poly([[3.0, 0.0]])[0]) < 1e-9)
     True
     """
-    return _fit("gradient_one", points, normals, degree, mu=check_positive(mu, "mu"))
+    return _fit("gradient_one", points, normals, degree, mu=check_positive(mu, "mu"),
+                far_weight=check_nonnegative(far_weight, "far_weight"))
 
 
 def fit_linear(points: ArrayLike, normals: ArrayLike | None, degree: int, method: str = "3l",
                **params) -> ImplicitPolynomial:
     """Dispatch to one of :data:`LINEAR_METHODS` by name (``'lstsq'``, ``'taubin'``, ``'3l'``,
-    ``'ridge'``, ``'gradient_one'``), passing ``params`` to it."""
+    ``'ridge'``, ``'gradient_one'``, or ``'3l-far'``: 3L with far-field rows at the default
+    weight), passing ``params`` to it."""
     method = check_choice(method, "method", LINEAR_METHODS)
+    if method == "3l-far":
+        poly = fit_3l(points, normals, degree, **{"far_weight": DEFAULT_FAR_WEIGHT, **params})
+        return poly.with_coefficients(poly.coefficients, method="3l-far")
     funcs = {"lstsq": fit_lstsq, "taubin": fit_taubin, "3l": fit_3l, "ridge": fit_ridge,
              "gradient_one": fit_gradient_one}
     if LINEAR_METHODS[method].needs_normals:

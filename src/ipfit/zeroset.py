@@ -34,6 +34,7 @@ __all__ = [
     "grid_values",
     "extract_zero_set",
     "data_bounds",
+    "default_bounds",
     "sample_segments",
     "sample_triangles",
 ]
@@ -90,7 +91,7 @@ def data_bounds(points: ArrayLike, margin: float = 0.25) -> NDArray[np.float64]:
     return np.column_stack([lo - pad, hi + pad])
 
 
-def _default_bounds(poly: ImplicitPolynomial, margin: float) -> NDArray[np.float64]:
+def default_bounds(poly: ImplicitPolynomial, margin: float) -> NDArray[np.float64]:
     # Without data, the normalisation is the only hint of where the shape is: the fitted
     # points lie mostly within ~1.5 mean radii of the centre.
     half = 1.5 * (1.0 + 2.0 * margin) * poly.scale
@@ -169,17 +170,29 @@ def grid_values(poly: ImplicitPolynomial, bounds: ArrayLike, resolution) -> NDAr
 
 # -- sampling helpers (shared with ipfit.quality) --------------------------------------------
 
+def _pieces(lengths: NDArray, spacing: float, max_samples: int | None, power: int) -> NDArray[np.int64]:
+    # Pieces per element (segment: k, triangle: k²); coarsen the spacing when over budget.
+    for _ in range(8):
+        ks = np.maximum(1, np.ceil(lengths / spacing)).astype(np.int64)
+        total = int(np.sum(ks ** power))
+        if max_samples is None or total <= max_samples or ks.max() == 1:
+            return ks
+        spacing *= 1.05 * (total / max_samples) ** (1 / power)
+    return ks
+
+
 def sample_segments(starts: NDArray, ends: NDArray, spacing: float,
-                    labels: NDArray | None = None) -> Samples:
+                    labels: NDArray | None = None, max_samples: int | None = None) -> Samples:
     """Midpoints of equal pieces of each segment, at most ``spacing`` long, with their lengths.
 
-    Every point of a segment is within ``spacing / 2`` of a sample.
+    Every point of a segment is within ``spacing / 2`` of a sample. With ``max_samples``,
+    the spacing grows as needed to stay near that count (every segment keeps one sample).
     """
     starts = np.asarray(starts, dtype=np.float64)
     ends = np.asarray(ends, dtype=np.float64)
     dim = starts.shape[1] if starts.ndim == 2 else 2
     lengths = np.linalg.norm(ends - starts, axis=1)
-    pieces = np.maximum(1, np.ceil(lengths / spacing)).astype(np.int64)
+    pieces = _pieces(lengths, spacing, max_samples, 1)
     owner = np.repeat(np.arange(len(lengths)), pieces)
     # position of each piece within its segment: 0..pieces-1, without a Python loop
     first = np.cumsum(pieces) - pieces
@@ -202,12 +215,13 @@ def _subtriangle_centroids(k: int) -> NDArray[np.float64]:
 
 
 def sample_triangles(vertices: NDArray, faces: NDArray, spacing: float,
-                     labels: NDArray | None = None) -> Samples:
+                     labels: NDArray | None = None, max_samples: int | None = None) -> Samples:
     """Centroids of a regular subdivision of every face, with the area each stands for.
 
     A face whose longest edge is L is cut into k² congruent triangles, k = ceil(L / spacing),
     so every point of the surface is within about ``2/3 · spacing`` of a sample, and the
-    weights are exact areas (a midpoint quadrature of the surface).
+    weights are exact areas (a midpoint quadrature of the surface). With ``max_samples``,
+    the spacing grows as needed to stay near that count (every face keeps one sample).
     """
     v = np.asarray(vertices, dtype=np.float64)
     f = np.asarray(faces, dtype=np.int64)
@@ -217,7 +231,7 @@ def sample_triangles(vertices: NDArray, faces: NDArray, spacing: float,
     longest = np.maximum.reduce([np.linalg.norm(b - a, axis=1), np.linalg.norm(c - b, axis=1),
                                  np.linalg.norm(a - c, axis=1)])
     areas = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
-    ks = np.maximum(1, np.ceil(longest / spacing)).astype(np.int64)
+    ks = _pieces(longest, spacing, max_samples, 2)
     lab = np.full(len(f), -1, dtype=np.int64) if labels is None else np.asarray(labels, dtype=np.int64)
     pts, wts, labs = [], [], []
     for k in np.unique(ks):  # few distinct subdivision levels: vectorised within each
@@ -332,10 +346,10 @@ class ZeroSet:
         return float(0.5 * np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]), axis=1).sum())
 
     # -- sampling -----------------------------------------------------------------------
-    def sample(self, spacing: float | None = None) -> Samples:
+    def sample(self, spacing: float | None = None, max_samples: int | None = None) -> Samples:
         """Dense samples of the zero set with length/area weights and component labels.
 
-        ``spacing`` defaults to a quarter of the grid step.
+        ``spacing`` defaults to a quarter of the grid step; see :func:`sample_triangles`.
         """
         spacing = self.step / 4 if spacing is None else float(spacing)
         if self.is_empty:
@@ -344,8 +358,8 @@ class ZeroSet:
             starts = np.concatenate([c[:-1] for c in self.curves])
             ends = np.concatenate([c[1:] for c in self.curves])
             labels = np.repeat(np.arange(len(self.curves)), [len(c) - 1 for c in self.curves])
-            return sample_segments(starts, ends, spacing, labels)
-        return sample_triangles(self.vertices, self.faces, spacing, self.component_labels)
+            return sample_segments(starts, ends, spacing, labels, max_samples)
+        return sample_triangles(self.vertices, self.faces, spacing, self.component_labels, max_samples)
 
     # -- export -------------------------------------------------------------------------
     def to_trimesh(self):
@@ -412,7 +426,7 @@ def extract_zero_set(poly: ImplicitPolynomial, bounds: ArrayLike | None = None, 
         pts = as_points(points, dims=(dim,))
         box = data_bounds(pts, margin)
     else:
-        box = _default_bounds(poly, check_nonnegative(margin, "margin"))
+        box = default_bounds(poly, check_nonnegative(margin, "margin"))
     if resolution is None:
         resolution = DEFAULT_RESOLUTION[dim]
     if isinstance(resolution, (list, tuple, np.ndarray)):

@@ -1,0 +1,57 @@
+"""Compiled per-point reduction of the paper's objective (Eq. 4), imported lazily.
+
+Kept apart from :mod:`ipfit.objective` so that ``import ipfit`` does not pay numba's import
+time; the first :class:`~ipfit.objective.Objective` evaluation loads (and caches) it.
+
+Threading: the kernel is *serial* on purpose. It runs between two OpenBLAS calls on a block
+of points whose products are still in cache, and OpenBLAS keeps its worker threads spinning
+for a while after each call; numba's parallel layers (workqueue, omp) then compete with those
+threads for the cores and were measured 2-50x slower than the serial loop on a 2-core machine.
+The serial reduction costs a fraction of the products anyway (see benchmarks/bench_objective.py).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+# error_model="numpy": division follows IEEE rules instead of raising, which lets LLVM
+# vectorise the inner loop (no per-element zero checks).
+_JIT = dict(cache=True, nogil=True, error_model="numpy", boundscheck=False)
+
+
+@njit(**_JIT)
+def reduce_population(values, grads, normals, tiny, cap, sum_taubin, sum_cosine):  # pragma: no cover - compiled
+    """Accumulate Σ_i min(|f|/||∇f||, cap) and Σ_i ∇f·n/||∇f|| for every member p.
+
+    ``values`` is (n, P) = f at n points for P members; ``grads`` is (n, dim·P) with ∂f/∂x_k
+    of member p in column k·P + p; ``normals`` is (n, dim) unit vectors. Squared norms are
+    clamped below by ``tiny``: where ∇f = 0 the cosine is then exactly 0 (the dot product is 0)
+    and the Taubin term is ``cap`` (or 0 when f = 0 too). Sums are accumulated in float64.
+    """
+    n, P = values.shape
+    # Two copies of the loop rather than a branch on dim inside it, so each vectorises.
+    if normals.shape[1] == 3:
+        for i in range(n):
+            n0 = np.float64(normals[i, 0])
+            n1 = np.float64(normals[i, 1])
+            n2 = np.float64(normals[i, 2])
+            for p in range(P):
+                gx = np.float64(grads[i, p])
+                gy = np.float64(grads[i, P + p])
+                gz = np.float64(grads[i, 2 * P + p])
+                s = max(gx * gx + gy * gy + gz * gz, tiny)
+                inv = 1.0 / np.sqrt(s)
+                sum_taubin[p] += min(abs(np.float64(values[i, p])) * inv, cap)
+                sum_cosine[p] += (gx * n0 + gy * n1 + gz * n2) * inv
+    else:
+        for i in range(n):
+            n0 = np.float64(normals[i, 0])
+            n1 = np.float64(normals[i, 1])
+            for p in range(P):
+                gx = np.float64(grads[i, p])
+                gy = np.float64(grads[i, P + p])
+                s = max(gx * gx + gy * gy, tiny)
+                inv = 1.0 / np.sqrt(s)
+                sum_taubin[p] += min(abs(np.float64(values[i, p])) * inv, cap)
+                sum_cosine[p] += (gx * n0 + gy * n1) * inv

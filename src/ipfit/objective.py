@@ -1,0 +1,360 @@
+"""The paper's measures (Eq. 2-4) and the objective minimised by :func:`ipfit.refine` (Eq. 5).
+
+For coefficients ``a`` and points x_i with unit normals n_i:
+
+* dissimilarity  = (1/N) Σ |f(x_i)| / ||∇f(x_i)||            (mean Taubin distance, Eq. 2)
+* smoothness     = (1/N) Σ ∇f(x_i)·n_i / ||∇f(x_i)||          (mean cosine, Eq. 3)
+* distance       = dissimilarity + δ (1 − smoothness)          (Eq. 4, the objective of Eq. 5)
+
+All three are unchanged when ``a`` is multiplied by a positive constant.
+
+A whole population A (P × d) is evaluated at once. With M the N × d monomial matrix, f = M Aᵀ,
+and because ∂f/∂x_k = m_{g−1}(x)ᵀ (D_k a), the gradients are products with the narrower
+N × d_{g−1} matrix L (the first d_{g−1} columns of M in the graded order) after a gather
+D_k Aᵀ. Points are processed in blocks: two BLAS products per block, then a compiled
+per-point reduction while the block is still in cache (:mod:`ipfit._objective_kernels`).
+
+Points where ∇f = 0: the cosine is 0 there and the Taubin term is :data:`TAUBIN_CAP` (0 if
+f = 0 too, a singular point on the curve). Each point's Taubin term is capped at
+:data:`TAUBIN_CAP` so that the mean stays finite; the cap is far beyond any distance that
+matters for data normalised to unit mean radius.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol, Sequence, runtime_checkable
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from . import basis
+from ._validation import as_normals, as_points, check_degree, check_nonnegative, error
+from .polynomial import ImplicitPolynomial
+
+__all__ = ["Measures", "measures", "Objective", "ObjectiveTerm", "TAUBIN_CAP", "DEFAULT_DELTA"]
+
+#: The paper's penalty weight δ (Section 5.3).
+DEFAULT_DELTA = 0.25
+#: Upper bound of one point's Taubin term |f|/||∇f||, in the evaluation coordinates.
+TAUBIN_CAP = 1e10
+# Squared-gradient floor: below it ∇f counts as zero (scale-free in practice: a unit-norm
+# coefficient vector never produces such gradients except where they vanish exactly).
+_TINY = float(np.finfo(np.float64).tiny)
+# Block size target in bytes for the (rows × (1 + dim)·P) products: keeps a block's products
+# in L2/L3 between the BLAS call and the reduction, while blocks stay tall enough for BLAS.
+_BLOCK_BYTES = 4 << 20
+_MIN_ROWS, _MAX_ROWS = 256, 4096
+
+
+@dataclass(frozen=True, eq=False)
+class Measures:
+    """The paper's measures of one polynomial (floats) or of a population ((P,) arrays).
+
+    Attributes
+    ----------
+    dissimilarity : mean Taubin distance |f|/||∇f|| (Eq. 2), in the evaluation coordinates
+        (a polynomial's own normalised coordinates for :func:`measures` on an
+        :class:`~ipfit.ImplicitPolynomial`).
+    smoothness : mean cosine between ∇f and the unit normals (Eq. 3), in [−1, 1].
+    distance : ``dissimilarity + delta * (1 - smoothness)`` (Eq. 4).
+    delta : the penalty weight δ used.
+    """
+
+    dissimilarity: float | NDArray[np.float64]
+    smoothness: float | NDArray[np.float64]
+    distance: float | NDArray[np.float64]
+    delta: float
+
+    def to_dict(self) -> dict:
+        """``{"dissimilarity", "smoothness", "distance", "delta"}`` as JSON-ready numbers (lists
+        for a population)."""
+        def plain(value):
+            return value.tolist() if isinstance(value, np.ndarray) else float(value)
+
+        return {"dissimilarity": plain(self.dissimilarity), "smoothness": plain(self.smoothness),
+                "distance": plain(self.distance), "delta": float(self.delta)}
+
+    def __getitem__(self, index) -> "Measures":
+        """The measures of population member(s) ``index``."""
+        pick = (lambda v: v[index]) if np.ndim(self.distance) else (lambda v: v)
+        out = Measures(pick(self.dissimilarity), pick(self.smoothness), pick(self.distance), self.delta)
+        if np.ndim(out.distance) == 0:
+            return Measures(float(out.dissimilarity), float(out.smoothness), float(out.distance), self.delta)
+        return out
+
+
+@runtime_checkable
+class ObjectiveTerm(Protocol):
+    """An extra term added to the paper's distance (for example a far-field penalty).
+
+    A term must be invariant to positive scaling of the coefficients, like the distance, and
+    vectorised over a population. With no terms, :class:`Objective` is the paper's Eq. 5.
+    """
+
+    def __call__(self, population: NDArray[np.float64]) -> NDArray[np.float64]:
+        """(P, d) coefficients → (P,) values."""
+
+    def value_and_grad(self, coefficients: NDArray[np.float64]) -> tuple[float, NDArray[np.float64]]:
+        """Value and gradient (d,) for one coefficient vector."""
+
+
+def _check_dtype(dtype) -> np.dtype:
+    try:
+        dt = np.dtype(dtype)
+    except TypeError:
+        dt = None
+    if dt not in (np.dtype(np.float32), np.dtype(np.float64)):
+        raise error("dtype", "numpy.float64 or numpy.float32", repr(dtype),
+                    "Use float32 only for fast population screening; final measures use float64.")
+    return dt
+
+
+class Objective:
+    r"""The paper's distance (Eq. 5) on fixed data, for whole populations of coefficients.
+
+    Build it once per (points, normals, degree, δ, dtype); the monomial matrix is computed
+    once and reused by every evaluation.
+
+    Parameters
+    ----------
+    u : (N, dim) array
+        Points in the coordinates of the coefficients (for fits: normalised coordinates,
+        see :meth:`from_data`).
+    normals : (N, dim) array
+        Normals at the points; normalised to unit length here.
+    degree : int
+        Polynomial degree g; coefficient vectors have d = C(g + dim, dim) entries.
+    delta : float, default 0.25
+        Penalty weight δ of the smoothness term.
+    dtype : numpy.float64 or numpy.float32
+        Precision of the products. float32 doubles BLAS throughput; its rounding (about 1e-7
+        relative to the largest monomial term) is far below the distances between good and
+        bad candidates at the degrees used here, so it suits metaheuristic screening.
+        :meth:`value_and_grad` always works in float64.
+    terms : sequence of :class:`ObjectiveTerm`
+        Extra terms added to the distance in :meth:`__call__` and :meth:`value_and_grad`;
+        empty (default) gives exactly the paper's objective.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from ipfit.datasets.synthetic import circle
+    >>> shape = circle(16)
+    >>> obj = Objective(shape.points, shape.normals, degree=2)
+    >>> exact = shape.polynomial.coefficients
+    >>> np.round(obj(np.stack([exact, 3.0 * exact, -exact])), 12).tolist()
+    [0.0, 0.0, 0.5]
+    """
+
+    def __init__(self, u: ArrayLike, normals: ArrayLike, degree: int, delta: float = DEFAULT_DELTA, *,
+                 dtype=np.float64, terms: Sequence[ObjectiveTerm] = ()) -> None:
+        pts = as_points(u, "points")
+        self.normals64 = as_normals(normals, pts, required_by="the smoothness measure")
+        self.degree = check_degree(degree)
+        self.delta = check_nonnegative(delta, "delta")
+        self.dtype = _check_dtype(dtype)
+        self.terms = tuple(terms)
+        for term in self.terms:
+            if not isinstance(term, ObjectiveTerm):
+                raise error("terms", "objects with __call__(population) and value_and_grad(a)",
+                            type(term).__name__)
+        self.u = pts
+        self.dim = pts.shape[1]
+        self.n_points = pts.shape[0]
+        self.n_coefficients = basis.n_coefficients(self.dim, self.degree)
+        self.n_lower = basis.n_coefficients(self.dim, self.degree - 1)
+        exps = basis.exponents(self.dim, self.degree)
+        # The graded order puts every monomial of degree <= g-1 first, so the derivative
+        # design matrix L is a column slice of M: no second matrix to build or store.
+        assert np.array_equal(exps[: self.n_lower], basis.exponents(self.dim, self.degree - 1))
+        m64 = basis.monomials(pts, exps)
+        self._m64 = m64
+        self._m = m64 if self.dtype == np.float64 else m64.astype(self.dtype)
+        self._normals = np.ascontiguousarray(self.normals64, dtype=self.dtype)
+        # D_k has exactly one non-zero per row: (D_k a)[j] = factor[k, j] * a[source[k, j]].
+        maps = basis.derivative_maps(self.dim, self.degree)
+        self._source = np.stack([dk.indices for dk in maps])
+        self._factor = np.stack([dk.data for dk in maps])
+        if any(dk.nnz != self.n_lower for dk in maps):  # pragma: no cover - basis invariant
+            raise AssertionError("derivative maps must have one entry per row")
+        self._kernel = None
+
+    # -- construction from raw data ---------------------------------------------------------
+    @classmethod
+    def from_data(cls, points: ArrayLike, normals: ArrayLike, degree: int, delta: float = DEFAULT_DELTA,
+                  **kwargs) -> "Objective":
+        """Normalise ``points`` with :meth:`Normalization.from_points` (as the linear fits do)
+        and build the objective in those coordinates; ``.normalization`` records the map."""
+        from .polynomial import Normalization
+
+        pts = as_points(points)
+        norm = Normalization.from_points(pts)
+        obj = cls(norm.apply(pts), as_normals(normals, pts, required_by="the smoothness measure"), degree,
+                  delta, **kwargs)
+        obj.normalization = norm
+        return obj
+
+    normalization = None  #: set by :meth:`from_data`
+
+    # -- population evaluation ----------------------------------------------------------------
+    def _population(self, population: ArrayLike) -> NDArray:
+        arr = np.asarray(population, dtype=np.float64)
+        if arr.ndim == 1:
+            arr = arr[None, :]
+        if arr.ndim != 2 or arr.shape[1] != self.n_coefficients:
+            raise error("population", f"a (P, {self.n_coefficients}) array of coefficient vectors",
+                        f"shape {np.shape(population)}",
+                        f"Degree {self.degree} in {self.dim}D has {self.n_coefficients} coefficients.")
+        if not np.isfinite(arr).all():
+            raise error("population", "finite coefficients", "NaN or inf")
+        return arr
+
+    def block_rows(self, n_members: int) -> int:
+        """Points per block for a population of ``n_members``."""
+        per_row = (1 + self.dim) * n_members * self.dtype.itemsize
+        return int(min(max(_BLOCK_BYTES // max(per_row, 1), _MIN_ROWS), _MAX_ROWS))
+
+    def sums(self, population: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Per-member Σ_i Taubin term and Σ_i cosine over the points (the fused kernel)."""
+        a = self._population(population)
+        if self._kernel is None:
+            from ._objective_kernels import reduce_population
+
+            self._kernel = reduce_population
+        n_members = a.shape[0]
+        at = np.ascontiguousarray(a.T, dtype=self.dtype)  # (d, P)
+        # Gathered derivative coefficients, member p of axis k in column k*P + p.
+        bt = np.empty((self.n_lower, self.dim * n_members), dtype=self.dtype)
+        for k in range(self.dim):
+            np.multiply(at[self._source[k]], self._factor[k][:, None], out=bt[:, k * n_members:(k + 1) * n_members])
+        rows = self.block_rows(n_members)
+        values = np.empty((rows, n_members), dtype=self.dtype)
+        grads = np.empty((rows, self.dim * n_members), dtype=self.dtype)
+        sum_t = np.zeros(n_members)
+        sum_c = np.zeros(n_members)
+        m, low = self._m, self._m[:, : self.n_lower]
+        for start in range(0, self.n_points, rows):
+            stop = min(start + rows, self.n_points)
+            n = stop - start
+            np.matmul(m[start:stop], at, out=values[:n])
+            np.matmul(low[start:stop], bt, out=grads[:n])
+            self._kernel(values[:n], grads[:n], self._normals[start:stop], _TINY, TAUBIN_CAP, sum_t, sum_c)
+        return sum_t, sum_c
+
+    def measures(self, population: ArrayLike) -> Measures:
+        """:class:`Measures` of every member, as (P,) float64 arrays."""
+        sum_t, sum_c = self.sums(population)
+        dissim = sum_t / self.n_points
+        smooth = sum_c / self.n_points
+        return Measures(dissim, smooth, dissim + self.delta * (1.0 - smooth), self.delta)
+
+    def __call__(self, population: ArrayLike) -> NDArray[np.float64]:
+        """(P, d) coefficients → (P,) objective values (the distance plus any extra terms)."""
+        a = self._population(population)
+        value = self.measures(a).distance
+        for term in self.terms:
+            value = value + np.asarray(term(a), dtype=np.float64)
+        return value
+
+    # -- single member with gradient -------------------------------------------------------------
+    def value_and_grad(self, coefficients: ArrayLike) -> tuple[float, NDArray[np.float64]]:
+        """Objective value and its analytic gradient with respect to ``coefficients`` (float64).
+
+        The gradient exists wherever no f(x_i) is exactly 0 and no ∇f(x_i) vanishes, i.e.
+        almost everywhere; at f(x_i) = 0 the sign function's value 0 is used (a subgradient).
+        It is orthogonal to ``coefficients`` (the objective is scale invariant).
+        """
+        a = self._population(coefficients)[0]
+        m, low = self._m64, self._m64[:, : self.n_lower]
+        f = m @ a
+        bt = (a[self._source] * self._factor).T  # (d_{g-1}, dim)
+        g = low @ bt  # (N, dim)
+        sq = np.maximum(np.einsum("ij,ij->i", g, g), _TINY)
+        inv = 1.0 / np.sqrt(sq)
+        absf = np.abs(f)
+        taubin = absf * inv
+        capped = taubin >= TAUBIN_CAP
+        taubin = np.minimum(taubin, TAUBIN_CAP)
+        dot = np.einsum("ij,ij->i", g, self.normals64)
+        cosine = dot * inv
+        n = self.n_points
+        value = taubin.sum() / n + self.delta * (1.0 - cosine.sum() / n)
+        # d|f|/||g|| = sign(f)/||g|| dm − |f| gᵀ/||g||³ dg;  d(g·n/||g||) = (n − cos g/||g||)/||g|| dg
+        weight_f = np.where(capped, 0.0, np.sign(f) * inv)
+        weight_g = (-np.where(capped, 0.0, taubin * inv * inv)[:, None] * g
+                    - self.delta * (self.normals64 - (cosine * inv)[:, None] * g) * inv[:, None])
+        grad = m.T @ weight_f
+        low_t_w = low.T @ weight_g  # (d_{g-1}, dim)
+        for k in range(self.dim):
+            # D_kᵀ y scatters y back through the gather; the sources of one axis are distinct.
+            grad[self._source[k]] += self._factor[k] * low_t_w[:, k]
+        grad /= n
+        for term in self.terms:
+            tv, tg = term.value_and_grad(a)
+            value += float(tv)
+            grad = grad + np.asarray(tg, dtype=np.float64)
+        return float(value), grad
+
+
+def measures(poly_or_population: ImplicitPolynomial | ArrayLike, points: ArrayLike, normals: ArrayLike,
+             delta: float = DEFAULT_DELTA) -> Measures:
+    """The paper's dissimilarity, smoothness and distance (Eq. 2-4) of a polynomial or a population.
+
+    Parameters
+    ----------
+    poly_or_population : ImplicitPolynomial, (d,) array or (P, d) array
+        An :class:`~ipfit.ImplicitPolynomial` is evaluated in its own normalised coordinates
+        u = (x − center)/scale: the dissimilarity is then in normalised units (the data's mean
+        radius is 1 for fitted polynomials), so it does not change when the user rescales the
+        data. Raw coefficient vectors are evaluated with ``points`` taken in the coefficients'
+        own coordinates; the degree follows from d.
+    points : (N, dim) array
+    normals : (N, dim) array
+        Normals at the points (normalised to unit length here).
+    delta : float, default 0.25
+        Penalty weight δ.
+
+    Returns
+    -------
+    Measures
+        Floats for a polynomial or a (d,) vector, (P,) arrays for a (P, d) population.
+
+    Examples
+    --------
+    The circle x² + y² − 1 at (1, 0) with normal (1, 0) and at (2, 0) with normal (0, 1):
+    Taubin terms 0 and 3/4, cosines 1 and 0.
+
+    >>> from ipfit import ImplicitPolynomial
+    >>> from ipfit.objective import measures
+    >>> circle = ImplicitPolynomial.from_coefficients([-1, 0, 0, 1, 0, 1], dim=2)
+    >>> m = measures(circle, [[1.0, 0.0], [2.0, 0.0]], [[1.0, 0.0], [0.0, 1.0]])
+    >>> m.dissimilarity, m.smoothness, m.distance
+    (0.375, 0.5, 0.5)
+    """
+    if isinstance(poly_or_population, ImplicitPolynomial):
+        poly = poly_or_population
+        pts = as_points(points, dims=(poly.dim,))
+        u = poly.normalization.apply(pts)
+        obj = Objective(u, as_normals(normals, pts, required_by="measures"), poly.degree, delta)
+        return obj.measures(poly.coefficients)[0]
+    pts = as_points(points)
+    try:
+        coef = np.asarray(poly_or_population, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise error("poly_or_population", "an ImplicitPolynomial or a (d,) or (P, d) coefficient array",
+                    type(poly_or_population).__name__) from None
+    if coef.ndim not in (1, 2) or coef.shape[-1] == 0:
+        raise error("poly_or_population", "an ImplicitPolynomial or a (d,) or (P, d) coefficient array",
+                    f"shape {coef.shape}")
+    dim = pts.shape[1]
+    try:
+        degree = basis.degree_from_n_coefficients(dim, coef.shape[-1])
+    except ValueError:
+        raise error("poly_or_population", f"coefficient vectors of length C(g+{dim}, {dim}) for some degree g",
+                    f"length {coef.shape[-1]}") from None
+    if degree == 0:
+        raise error("poly_or_population", "a polynomial of degree >= 1", "a constant")
+    obj = Objective(pts, as_normals(normals, pts, required_by="measures"), degree, delta)
+    result = obj.measures(coef)
+    return result[0] if coef.ndim == 1 else result

@@ -1,0 +1,90 @@
+"""Algorithm 1: the stopping rule on synthetic smoothness paths and on real fits."""
+
+import numpy as np
+import pytest
+
+import ipfit
+from ipfit.adaptive import fit_adaptive, select_degree
+from ipfit.datasets import synthetic
+
+
+@pytest.mark.parametrize("smoothness,expected,reason", [
+    ([0.70, 0.85, 0.92, 0.90, 0.95], 2, "criterion"),  # strict maximum at degree 6
+    ([0.70, 0.80, 0.85, 0.855, 0.86], 2, "criterion"),  # steady increase that flattens: gain 0.005 ≤ ε
+    ([0.90, 0.905, 0.99], 0, "criterion"),  # the first step already gains ≤ ε
+    ([0.5, 0.6, 0.7, 0.8, 0.9], 4, "max_degree"),  # still improving at G
+    ([0.9], 0, "max_degree"),  # a single degree
+])
+def test_stopping_rule_on_synthetic_paths(smoothness, expected, reason):
+    degrees = list(range(2, 2 * len(smoothness) + 1, 2))
+    assert select_degree(degrees, smoothness, epsilon=0.01) == (expected, reason)
+
+
+def test_epsilon_zero_stops_only_on_a_decrease():
+    degrees = [2, 4, 6, 8]
+    assert select_degree(degrees, [0.7, 0.8, 0.805, 0.79], epsilon=0.0) == (2, "criterion")
+    assert select_degree(degrees, [0.7, 0.8, 0.805, 0.79], epsilon=0.01) == (1, "criterion")
+
+
+def test_gain_exactly_epsilon_stops():
+    # "stop when smoothness improves by no more than ε": a gain equal to ε stops
+    assert select_degree([2, 4], [0.5, 0.75], epsilon=0.25) == (0, "criterion")
+
+
+def test_an_ellipse_needs_degree_two():
+    shape = synthetic.ellipse(200, a=2.0, b=1.0)
+    result = fit_adaptive(shape.points, shape.normals, method="3l")
+    assert result.selected_degree == 2
+    assert result.reason == "criterion"
+    assert [d.degree for d in result.degrees] == [2, 4]
+    assert result.degrees[0].smoothness == pytest.approx(1.0, abs=1e-6)
+
+
+def test_result_keeps_the_whole_path_and_obeys_its_own_rule(rng):
+    t = np.sort(rng.uniform(0, 2 * np.pi, 400))
+    r = 1 + 0.3 * np.cos(3 * t)  # a trefoil-like blob: needs more than a conic
+    pts = np.column_stack([r * np.cos(t), r * np.sin(t)])
+    tang = np.gradient(pts, axis=0)
+    nrm = np.column_stack([tang[:, 1], -tang[:, 0]])
+    result = fit_adaptive(pts, nrm, method="3l", max_degree=10)
+    assert result.selected_degree >= 4
+    data = result.to_dict()
+    smooth = [d["smoothness"] for d in data["degrees"]]
+    degrees = [d["degree"] for d in data["degrees"]]
+    index, _ = select_degree(degrees, smooth, data["adaptive"]["epsilon"])
+    assert data["selected_degree"] == degrees[index] == data["degree"]
+    for entry in data["degrees"]:
+        assert {"degree", "dissimilarity", "smoothness", "distance", "seconds", "coefficients"} <= set(entry)
+    taken = result.at_degree(degrees[-1])
+    assert taken.polynomial.degree == degrees[-1]
+
+
+def test_max_degree_is_checked_against_the_number_of_points():
+    shape = synthetic.circle(20)
+    with pytest.raises(ipfit.InvalidInputError, match="max_degree: expected at most 4 for 20 points"):
+        fit_adaptive(shape.points, shape.normals, method="3l", max_degree=6)
+
+
+def test_unknown_method_lists_the_valid_ones():
+    shape = synthetic.circle(50)
+    with pytest.raises(ipfit.InvalidInputError, match="method: expected one of 'lstsq'"):
+        fit_adaptive(shape.points, shape.normals, method="simulated-annealing")
+
+
+def test_interrupt_keeps_finished_degrees(monkeypatch):
+    shape = synthetic.ellipse(200)
+    import ipfit.adaptive as adaptive
+
+    real = adaptive.fit_linear
+    calls = []
+
+    def interrupting(points, normals, degree, method, **params):
+        calls.append(degree)
+        if degree == 4:
+            raise KeyboardInterrupt
+        return real(points, normals, degree, method, **params)
+
+    monkeypatch.setattr(adaptive, "fit_linear", interrupting)
+    result = fit_adaptive(shape.points, shape.normals, method="3l")
+    assert result.reason == "interrupted" and [d.degree for d in result.degrees] == [2]
+    assert result.selected_degree == 2
