@@ -21,8 +21,12 @@ from ._validation import (as_normals, as_points, check_choice, check_int, check_
 from .linear import LINEAR_METHODS, fit_linear
 from .polynomial import ImplicitPolynomial
 
-__all__ = ["fit_adaptive", "AdaptiveResult", "DegreeResult", "select_degree", "FIXED_DEGREE_METHODS",
-           "DEFAULT_METHOD", "DEFAULT_MAX_DEGREE"]
+__all__ = ["fit_adaptive", "AdaptiveResult", "DegreeResult", "select_degree", "select_degree_geometric",
+           "fixed_degree_methods", "DEFAULT_METHOD", "DEFAULT_MAX_DEGREE", "RULES"]
+
+#: Degree-selection rules: the paper's Algorithm 1, and the same rule restricted to degrees
+#: whose zero set is clean (no spurious component, closed inside the box) when one exists.
+RULES = ("paper", "geometric")
 
 #: Maximum degree tried by default, per dimension (the paper: degrees 2 to 10 are the norm).
 DEFAULT_MAX_DEGREE = {2: 10, 3: 8}
@@ -39,8 +43,6 @@ def fixed_degree_methods() -> tuple[str, ...]:
     """Names accepted by ``fit_adaptive(method=...)``: the linear fits and the refinements."""
     return tuple(LINEAR_METHODS) + _refine_methods()
 
-
-FIXED_DEGREE_METHODS = fixed_degree_methods
 
 
 @dataclass(frozen=True, eq=False)
@@ -86,6 +88,26 @@ def select_degree(degrees: Sequence[int], smoothness: Sequence[float], epsilon: 
     return len(degrees) - 1, ("max_degree" if complete else "incomplete")
 
 
+def select_degree_geometric(degrees: Sequence[int], smoothness: Sequence[float], clean: Sequence[bool],
+                            f_scores: Sequence[float], epsilon: float = 0.01,
+                            complete: bool = True) -> tuple[int, str]:
+    """The paper's rule, but never a degree whose zero set is not clean when a clean one exists.
+
+    ``clean[i]`` says degree i's zero set has no spurious component and closes inside the
+    box. When the paper's choice is not clean, the clean degree with the highest F-score
+    (the lowest such degree on ties) is taken, with reason ``'geometric'``.
+
+    >>> select_degree_geometric([2, 4, 6], [0.8, 0.9, 0.905], [True, False, True], [0.7, 0.9, 0.95])
+    (2, 'geometric')
+    """
+    index, reason = select_degree(degrees, smoothness, epsilon, complete)
+    if clean[index] or not any(clean):
+        return index, reason
+    candidates = [i for i in range(len(degrees)) if clean[i]]
+    best = max(candidates, key=lambda i: (f_scores[i], -degrees[i]))
+    return best, "geometric"
+
+
 @dataclass(frozen=True, eq=False)
 class AdaptiveResult:
     """Result of :func:`fit_adaptive`.
@@ -128,6 +150,9 @@ class AdaptiveResult:
         out["degrees"] = [d.to_dict() for d in self.degrees]
         out["adaptive"] = {"epsilon": self.epsilon, "delta": self.delta, "method": self.method,
                            "reason": self.reason, "rule": self.rule, "seconds": self.seconds}
+        chosen = self.at_degree(self.selected_degree)
+        if "quality" in chosen.details:
+            out["quality"] = chosen.details["quality"]
         return out
 
 
@@ -164,6 +189,7 @@ def _state_dict(state) -> dict:
 
 def fit_adaptive(points: ArrayLike, normals: ArrayLike | None = None, *, method: str | FitFunction = DEFAULT_METHOD,
                  max_degree: int | None = None, min_degree: int = 2, epsilon: float = 0.01, delta: float = 0.25,
+                 rule: str = "paper", faces: ArrayLike | None = None, ordered_contour: bool = False,
                  rng=None, progress: Callable[[dict], None] | None = None, **params) -> AdaptiveResult:
     """Find the degree the data needs (Algorithm 1) and fit at it.
 
@@ -178,6 +204,12 @@ def fit_adaptive(points: ArrayLike, normals: ArrayLike | None = None, *, method:
     min_degree : the first degree tried (even, default 2).
     epsilon : ε, the smallest smoothness gain that justifies a higher degree.
     delta : δ of the paper's distance.
+    rule : 'paper' (Algorithm 1) or 'geometric': the geometric quality of every degree is
+        measured (:func:`ipfit.quality.quality`: F-score, spurious components, closed) and
+        a degree whose zero set is not clean is not selected when a clean one exists; the
+        loop goes on past the paper's stop until a clean degree has been seen.
+    faces, ordered_contour : describe the data's shape for the quality measures (mesh faces;
+        a 2D contour in order), used with ``rule='geometric'``.
     rng : seed or Generator (SPEC 7), passed to the metaheuristics.
     progress : called with a dict per event ('degree_start', 'iteration', 'degree_done').
     **params : passed to the fixed-degree method (e.g. ``iterations``, ``population``).
@@ -213,6 +245,7 @@ def fit_adaptive(points: ArrayLike, normals: ArrayLike | None = None, *, method:
         unit = as_normals(normals, pts)
     if not callable(method):
         method = check_choice(method, "method", fixed_degree_methods())
+    rule = check_choice(rule, "rule", RULES)
     epsilon = check_real(epsilon, "epsilon")
     delta = check_nonnegative(delta, "delta")
     min_degree = check_int(min_degree, "min_degree", minimum=1)
@@ -245,19 +278,36 @@ def fit_adaptive(points: ArrayLike, normals: ArrayLike | None = None, *, method:
             break
         m = compute_measures(poly, pts, unit, delta=delta)
         poly = poly.with_coefficients(poly.coefficients, measures=m.to_dict())
+        if rule == "geometric":
+            from .quality import quality
+
+            q = quality(poly, pts, faces=faces, ordered_contour=ordered_contour)
+            details = {**details, "quality": q.to_dict()}
         entry = DegreeResult(degree, poly, float(m.dissimilarity), float(m.smoothness), float(m.distance),
                              time.perf_counter() - t0, solutions, details)
         results.append(entry)
         if progress is not None:
             progress({"event": "degree_done", **entry.to_dict()})
         if len(results) >= 2 and results[-1].smoothness - results[-2].smoothness <= epsilon:
-            reason = "criterion"
-            break
-    index, rule_reason = select_degree([r.degree for r in results], [r.smoothness for r in results], epsilon,
-                                       complete=reason != "interrupted")
+            if rule == "paper" or any(_is_clean(r) for r in results):
+                reason = "criterion"
+                break
+    complete = reason != "interrupted"
+    if rule == "geometric":
+        index, rule_reason = select_degree_geometric(
+            [r.degree for r in results], [r.smoothness for r in results], [_is_clean(r) for r in results],
+            [r.details["quality"]["f_score"] for r in results], epsilon, complete)
+    else:
+        index, rule_reason = select_degree([r.degree for r in results], [r.smoothness for r in results], epsilon,
+                                           complete=complete)
     if reason != "interrupted":
         reason = rule_reason
     chosen = results[index]
     name = method if isinstance(method, str) else getattr(method, "__name__", "custom")
     return AdaptiveResult(chosen.polynomial, chosen.degree, tuple(results), reason, epsilon, delta, name,
-                          time.perf_counter() - start)
+                          time.perf_counter() - start, rule)
+
+
+def _is_clean(entry: DegreeResult) -> bool:
+    q = entry.details.get("quality")
+    return bool(q) and q["n_spurious"] == 0 and bool(q["closed"])

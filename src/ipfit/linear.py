@@ -53,7 +53,7 @@ DEFAULT_KAPPA = 1e-4
 DEFAULT_MU = 0.01
 #: Default far-field weight of the "3l-far" method: the far-field rows' share of the system's
 #: total weight (see :func:`far_field_rows`).
-DEFAULT_FAR_WEIGHT = 0.1
+DEFAULT_FAR_WEIGHT = 1e-3
 _RCOND = 1e-13  # relative singular-value cut-off of the triangular solves
 
 
@@ -167,14 +167,16 @@ def _three_level_rows(problem: _Problem, c: float) -> tuple[NDArray, NDArray]:
 
 
 def far_field_samples(u: NDArray[np.float64], normals: NDArray[np.float64], *, c: float = DEFAULT_OFFSET,
-                      margin: float = 0.25, per_axis: int | None = None,
+                      margin: float = 0.3, per_axis: int | None = None,
                       clearance: float = 3.0) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Grid samples of the data's box (plus ``margin``) away from the data, with signed distances.
 
-    Samples closer to the data than ``clearance · c`` are dropped (near the data the 3L
-    rows already speak). The target is the distance to the nearest data point, signed by
-    that point's normal: positive outside, negative inside. The grid is regular, so fits
-    stay deterministic.
+    The box is the data's bounding box grown by ``margin`` × its longest side, a little more
+    than the box in which zero sets are extracted and judged (0.25), so that every part of
+    that box is constrained. Samples closer to the data than ``clearance · c`` are dropped
+    (there the 3L rows already speak). The target is the distance to the nearest data point,
+    signed by that point's normal: positive outside, negative inside. The grid is regular
+    with the same step on every axis, so fits stay deterministic.
 
     Returns
     -------
@@ -185,9 +187,10 @@ def far_field_samples(u: NDArray[np.float64], normals: NDArray[np.float64], *, c
 
     dim = u.shape[1]
     lo, hi = u.min(axis=0), u.max(axis=0)
-    pad = margin * (hi - lo)
-    count = per_axis or (40 if dim == 2 else 16)
-    axes = [np.linspace(a - p, b + p, count) for a, b, p in zip(lo, hi, pad)]
+    pad = margin * float((hi - lo).max())
+    lo, hi = lo - pad, hi + pad
+    step = float((hi - lo).max()) / ((per_axis or (40 if dim == 2 else 16)) - 1)
+    axes = [np.arange(a, b + 0.5 * step, step) for a, b in zip(lo, hi)]
     grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, dim)
     dist, nearest = cKDTree(u).query(grid, workers=-1)
     keep = dist > clearance * c

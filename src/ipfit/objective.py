@@ -26,6 +26,7 @@ from dataclasses import dataclass
 from typing import Protocol, Sequence, runtime_checkable
 
 import numpy as np
+import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 
 from . import basis
@@ -179,6 +180,7 @@ class Objective:
         if any(dk.nnz != self.n_lower for dk in maps):  # pragma: no cover - basis invariant
             raise AssertionError("derivative maps must have one entry per row")
         self._kernel = None
+        self._whitening = None
 
     # -- construction from raw data ---------------------------------------------------------
     @classmethod
@@ -256,6 +258,28 @@ class Objective:
         for term in self.terms:
             value = value + np.asarray(term(a), dtype=np.float64)
         return value
+
+    # -- conditioning ------------------------------------------------------------------------------
+    def whitening(self) -> NDArray[np.float64]:
+        r"""Upper-triangular R (d × d) with RᵀR = MᵀM + Σ_k M_kᵀM_k (M_k = ∂M/∂x_k).
+
+        In y = R a, ||y||² = Σ_i f(x_i)² + ||∇f(x_i)||², so every direction of y changes the
+        values and gradients on the data by the same amount: the natural coordinates for a
+        search over polynomials (the raw coefficients of high-degree terms are orders of
+        magnitude more sensitive than the others). Computed once, by a blockwise QR.
+        """
+        if self._whitening is None:
+            d = self.n_coefficients
+            r = np.zeros((0, d))
+            rows = max(_MIN_ROWS, (1 << 22) // (8 * d * (1 + self.dim)))
+            for start in range(0, self.n_points, rows):
+                m, dm = basis.monomials_and_gradients(self.u[start:start + rows], self.degree)
+                block = np.concatenate([r, m, dm.reshape(-1, d)])
+                r = scipy.linalg.qr(block, mode="r", overwrite_a=True, check_finite=False)[0][:d]
+            # A positive diagonal makes R unique (and the map orientation-preserving).
+            sign = np.where(np.diag(r) < 0, -1.0, 1.0)
+            self._whitening = sign[:, None] * r
+        return self._whitening
 
     # -- single member with gradient -------------------------------------------------------------
     def value_and_grad(self, coefficients: ArrayLike) -> tuple[float, NDArray[np.float64]]:

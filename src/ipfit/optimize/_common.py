@@ -1,0 +1,163 @@
+"""Shared pieces of the population solvers: the result type and the generation loop."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Callable, Iterator
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .._validation import check_int, check_rng, error
+
+__all__ = ["OptimizeResult", "PopulationSolver", "unit_rows"]
+
+
+@dataclass(frozen=True, eq=False)
+class OptimizeResult:
+    """Outcome (or, passed to a callback, the current state) of a solver.
+
+    Attributes
+    ----------
+    x : (d,) best point found.
+    fun : its objective value.
+    nit : iterations (generations) completed.
+    nfev : objective evaluations, one per population member evaluated.
+    success : False only when the run stopped on an error condition.
+    message : why the run stopped.
+    history : (nit + 1,) best value after each iteration, starting with the initial one.
+    population, population_fun : the solver's memory of good points (DE: the population;
+        PSO: the personal bests) and their values, best first in a final result. In a
+        callback's snapshot these are the live arrays: read, do not keep or modify.
+    """
+
+    x: NDArray[np.float64]
+    fun: float
+    nit: int
+    nfev: int
+    success: bool = True
+    message: str = ""
+    history: NDArray[np.float64] = field(default_factory=lambda: np.empty(0))
+    population: NDArray[np.float64] | None = None
+    population_fun: NDArray[np.float64] | None = None
+
+    def __repr__(self) -> str:
+        return (f"OptimizeResult(fun={self.fun:.6g}, nit={self.nit}, nfev={self.nfev}, "
+                f"success={self.success}, message={self.message!r})")
+
+
+def unit_rows(x: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Scale every row to unit Euclidean norm (rows of zeros stay zero).
+
+    The paper's objective does not change when the coefficients are multiplied by a
+    positive constant; projecting candidates on the unit sphere removes that flat direction,
+    along which a population would otherwise drift.
+    """
+    norm = np.linalg.norm(x, axis=-1, keepdims=True)
+    return x / np.where(norm > 0, norm, 1.0)
+
+
+class PopulationSolver:
+    """Base of :class:`DifferentialEvolution` and :class:`ParticleSwarm`.
+
+    Subclasses implement ``_step()`` (one generation, exactly one call of ``func``).
+    Iterating over a solver runs one generation per item and yields the state snapshot;
+    :meth:`solve` runs to ``maxiter`` generations (or until the callback stops it).
+    """
+
+    name = "population solver"
+
+    def __init__(self, func: Callable[[NDArray], ArrayLike], population: ArrayLike, *, maxiter: int = 500,
+                 rng=None, callback: Callable[[OptimizeResult], Any] | None = None,
+                 project: Callable[[NDArray], NDArray] | None = None, min_population: int = 2) -> None:
+        pop = np.array(population, dtype=np.float64, copy=True)
+        if pop.ndim != 2 or pop.shape[0] < min_population or pop.shape[1] < 1:
+            raise error("population", f"a (P, d) array with P >= {min_population}", f"shape {pop.shape}")
+        if not np.isfinite(pop).all():
+            raise error("population", "finite values", "NaN or inf")
+        if callback is not None and not callable(callback):
+            raise error("callback", "a callable or None", type(callback).__name__)
+        self.func = func
+        self.maxiter = check_int(maxiter, "maxiter", minimum=0)
+        self.rng = check_rng(rng)
+        self.callback = callback
+        self.project = project
+        if project is not None:
+            pop = project(pop)
+        self.nfev = 0
+        self.population = pop
+        self.population_fun = self._evaluate(pop)
+        self.nit = 0
+        self._history = [float(self.population_fun.min())]
+        self.message = ""
+        self.stopped = False
+
+    # -- helpers ---------------------------------------------------------------------------
+    def _evaluate(self, pop: NDArray) -> NDArray[np.float64]:
+        values = np.asarray(self.func(pop), dtype=np.float64)
+        if values.shape != (pop.shape[0],):
+            raise error("func", f"a ({pop.shape[0]},) array of values for a ({pop.shape[0]}, d) population",
+                        f"shape {values.shape}")
+        # A NaN would never be selected against; make it the worst value instead.
+        values = np.where(np.isnan(values), np.inf, values)
+        self.nfev += pop.shape[0]
+        return values
+
+    @property
+    def best_index(self) -> int:
+        return int(np.argmin(self.population_fun))
+
+    @property
+    def x(self) -> NDArray[np.float64]:
+        return self.population[self.best_index].copy()
+
+    @property
+    def fun(self) -> float:
+        return float(self.population_fun[self.best_index])
+
+    @property
+    def history(self) -> NDArray[np.float64]:
+        return np.array(self._history)
+
+    def _step(self) -> None:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    # -- public loop -----------------------------------------------------------------------
+    def step(self) -> OptimizeResult:
+        """Run one generation and return the state snapshot."""
+        self._step()
+        self.nit += 1
+        self._history.append(self.fun)
+        return self.snapshot()
+
+    def snapshot(self) -> OptimizeResult:
+        return OptimizeResult(self.x, self.fun, self.nit, self.nfev, True, self.message, self.history,
+                              self.population, self.population_fun)
+
+    def __iter__(self) -> Iterator[OptimizeResult]:
+        while self.nit < self.maxiter and not self.stopped:
+            yield self.step()
+
+    def solve(self) -> OptimizeResult:
+        """Run up to ``maxiter`` generations; the callback sees every one.
+
+        The callback receives the state snapshot; returning True or raising StopIteration
+        stops the run (``message`` says so, ``success`` stays True).
+        """
+        self.message = f"maximum number of iterations ({self.maxiter}) reached"
+        for state in self:
+            if self.callback is not None:
+                try:
+                    stop = self.callback(state)
+                except StopIteration:
+                    stop = True
+                if stop is True:
+                    self.stopped = True
+                    self.message = "stopped by the callback"
+        return self.result()
+
+    def result(self) -> OptimizeResult:
+        """The final result, with the population sorted best first."""
+        order = np.argsort(self.population_fun, kind="stable")
+        return OptimizeResult(self.x, self.fun, self.nit, self.nfev, True, self.message or "not run",
+                              self.history, self.population[order].copy(), self.population_fun[order].copy())
