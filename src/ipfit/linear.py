@@ -24,6 +24,7 @@ from numpy.typing import ArrayLike, NDArray
 from . import basis
 from ._validation import as_normals, as_points, check_choice, check_degree, check_nonnegative, check_positive, error
 from .exceptions import ConditioningWarning
+from .farfield import far_field_samples
 from .polynomial import ImplicitPolynomial, Normalization
 
 __all__ = [
@@ -164,39 +165,6 @@ def _three_level_rows(problem: _Problem, c: float) -> tuple[NDArray, NDArray]:
     stacked = np.concatenate([u, u + c * n, u - c * n])
     targets = np.concatenate([np.zeros(len(u)), np.full(len(u), c), np.full(len(u), -c)])
     return problem.design(stacked), targets
-
-
-def far_field_samples(u: NDArray[np.float64], normals: NDArray[np.float64], *, c: float = DEFAULT_OFFSET,
-                      margin: float = 0.3, per_axis: int | None = None,
-                      clearance: float = 3.0) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Grid samples of the data's box (plus ``margin``) away from the data, with signed distances.
-
-    The box is the data's bounding box grown by ``margin`` × its longest side, a little more
-    than the box in which zero sets are extracted and judged (0.25), so that every part of
-    that box is constrained. Samples closer to the data than ``clearance · c`` are dropped
-    (there the 3L rows already speak). The target is the distance to the nearest data point,
-    signed by that point's normal: positive outside, negative inside. The grid is regular
-    with the same step on every axis, so fits stay deterministic.
-
-    Returns
-    -------
-    samples : (M, dim) array, in the same (normalised) coordinates as ``u``.
-    targets : (M,) signed distances.
-    """
-    from scipy.spatial import cKDTree
-
-    dim = u.shape[1]
-    lo, hi = u.min(axis=0), u.max(axis=0)
-    pad = margin * float((hi - lo).max())
-    lo, hi = lo - pad, hi + pad
-    step = float((hi - lo).max()) / ((per_axis or (40 if dim == 2 else 16)) - 1)
-    axes = [np.arange(a, b + 0.5 * step, step) for a, b in zip(lo, hi)]
-    grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, dim)
-    dist, nearest = cKDTree(u).query(grid, workers=-1)
-    keep = dist > clearance * c
-    grid, dist, nearest = grid[keep], dist[keep], nearest[keep]
-    side = np.einsum("ij,ij->i", grid - u[nearest], normals[nearest])
-    return grid, np.where(side < 0, -dist, dist)
 
 
 def _with_far_field(problem: _Problem, a_mat: NDArray, b: NDArray, far_weight: float, c: float):

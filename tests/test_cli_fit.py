@@ -1,0 +1,132 @@
+"""`ipfit fit` end to end, in-process and as a subprocess, including every bad input."""
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ipfit.adaptive import select_degree
+from ipfit.cli import main
+
+
+def _outputs(folder: Path) -> list[str]:
+    return sorted(p.name for p in folder.iterdir())
+
+
+def test_fit_bundled_2d_dataset_in_process(tmp_path, capsys):
+    prefix = tmp_path / "out" / "airplane"
+    code = main(["fit", "airplane", "-o", str(prefix), "--method", "3l", "--quiet"])
+    assert code == 0
+    assert _outputs(prefix.parent) == ["airplane.csv", "airplane.json", "airplane.png", "airplane.svg"]
+    data = json.loads((prefix.parent / "airplane.json").read_text())
+    for key in ("format", "version", "dim", "degree", "exponents", "coefficients", "normalization", "method",
+                "measures", "selected_degree", "degrees"):
+        assert key in data
+    degrees = [d["degree"] for d in data["degrees"]]
+    smooth = [d["smoothness"] for d in data["degrees"]]
+    index, _ = select_degree(degrees, smooth, data["adaptive"]["epsilon"])
+    assert data["selected_degree"] == degrees[index] == data["degree"]
+    assert set(data["measures"]) == {"dissimilarity", "smoothness", "distance", "delta"}
+
+
+def test_fit_3d_file_with_refinement_writes_a_mesh(tmp_path, shared_data):
+    prefix = tmp_path / "bunny"
+    code = main(["fit", str(shared_data / "3d" / "bun_zipper_res4.ply"), "-o", str(prefix), "--method", "de+polish",
+                 "--max-degree", "4", "--iterations", "5", "--population", "40", "--quiet", "--seed", "3"])
+    assert code == 0
+    assert _outputs(tmp_path) == ["bunny.json", "bunny.ply", "bunny.png"]
+    data = json.loads((tmp_path / "bunny.json").read_text())
+    assert data["dim"] == 3 and data["selected_degree"] in (2, 4)
+    assert all(len(d["coefficients"]) in (10, 35) for d in data["degrees"])
+
+
+def test_fixed_degree(tmp_path):
+    code = main(["fit", "boot", "-o", str(tmp_path / "b"), "--degree", "4", "--method", "3l", "--quiet",
+                 "--no-picture", "--no-zero-set"])
+    assert code == 0
+    data = json.loads((tmp_path / "b.json").read_text())
+    assert data["selected_degree"] == 4 and [d["degree"] for d in data["degrees"]] == [4]
+
+
+@pytest.mark.parametrize("argv,message", [
+    (["fit", "no-such-file.ply"], "no-such-file.ply: no such file, nor a bundled dataset name"),
+    (["fit", "boot", "--degree", "x"], "--degree: expected 'auto' or a whole number"),
+    (["fit", "boot", "--epsilon", "abc"], "argument --epsilon: expected a number"),
+    (["fit", "boot", "--delta", "-1"], "argument --delta: expected a number >= 0"),
+    (["fit", "boot", "--method", "annealing"], "argument --method: invalid choice"),
+    (["fit", "boot", "--iterations", "0"], "argument --iterations: expected a whole number >= 1"),
+    (["fit", "airplane", "--degree", "30"], "--degree: degree 30 needs at least 496 points, the input has 200"),
+    (["fit", "airplane", "--max-degree", "24", "--method", "3l"], "max_degree: expected at most 18 for 200 points"),
+])
+def test_bad_input_exits_2_with_one_line_and_no_output(tmp_path, capsys, argv, message):
+    prefix = tmp_path / "o" / "x"
+    code = None
+    try:
+        code = main(argv + ["-o", str(prefix), "--quiet"])
+    except SystemExit as exc:  # argparse errors
+        code = exc.code
+    err = capsys.readouterr().err
+    assert code == 2
+    assert message in err
+    assert len(err.strip().splitlines()) == 1
+    assert not prefix.parent.exists() or _outputs(prefix.parent) == []
+
+
+def test_unreadable_file_exits_2(tmp_path, capsys):
+    bad = tmp_path / "points.xyz"
+    bad.write_text("1 2 3\nfoo bar baz\n")
+    code = main(["fit", str(bad), "-o", str(tmp_path / "r"), "--quiet"])
+    assert code == 2
+    err = capsys.readouterr().err
+    assert str(bad) in err and len(err.strip().splitlines()) == 1
+    assert _outputs(tmp_path) == ["points.xyz"]
+
+
+def _run(args, cwd):
+    env = {**os.environ, "PYTHONWARNINGS": "ignore"}
+    return subprocess.run([sys.executable, "-m", "ipfit.cli", *args], cwd=cwd, capture_output=True, text=True,
+                          env=env, timeout=300)
+
+
+def test_subprocess_success_and_failure(tmp_path):
+    ok = _run(["fit", "airplane", "-o", "a", "--method", "3l"], tmp_path)
+    assert ok.returncode == 0, ok.stderr
+    assert "selected degree" in ok.stdout
+    assert (tmp_path / "a.json").exists()
+    bad = _run(["fit", "missing.csv", "-o", "m"], tmp_path)
+    assert bad.returncode == 2
+    assert bad.stderr.count("\n") == 1 and "Traceback" not in bad.stderr
+    assert not (tmp_path / "m.json").exists()
+
+
+def test_help_lists_every_option():
+    out = subprocess.run([sys.executable, "-m", "ipfit.cli", "fit", "--help"], capture_output=True, text=True)
+    assert out.returncode == 0
+    for option in ("--degree", "--max-degree", "--method", "--epsilon", "--delta", "--iterations", "--population",
+                   "--seed", "--normals", "--output", "--quiet"):
+        assert option in out.stdout
+    top = subprocess.run([sys.executable, "-m", "ipfit.cli", "--help"], capture_output=True, text=True)
+    assert top.returncode == 0 and "fit" in top.stdout
+
+
+def test_ctrl_c_keeps_every_finished_degree(tmp_path, monkeypatch):
+    import ipfit.adaptive as adaptive
+
+    real = adaptive.fit_linear
+
+    def interrupting(points, normals, degree, method, **params):
+        if degree == 6:
+            raise KeyboardInterrupt
+        return real(points, normals, degree, method, **params)
+
+    monkeypatch.setattr(adaptive, "fit_linear", interrupting)
+    code = main(["fit", "boot", "-o", str(tmp_path / "boot"), "--method", "3l", "--epsilon", "-1", "--quiet"])
+    assert code == 130
+    data = json.loads((tmp_path / "boot.json").read_text())
+    assert [d["degree"] for d in data["degrees"]] == [2, 4]
+    assert data["adaptive"]["reason"] == "interrupted"
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no temporary files left

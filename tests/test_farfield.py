@@ -1,0 +1,89 @@
+"""Far-field information: samples, the objective term, and the linear rows (issue 8)."""
+
+import numpy as np
+import pytest
+
+import ipfit
+from ipfit.basis import n_coefficients
+from ipfit.datasets import synthetic
+from ipfit.farfield import FarFieldTerm, far_field_samples
+from ipfit.objective import Objective
+
+
+def test_samples_are_signed_by_the_normals_and_keep_clear_of_the_data():
+    shape = synthetic.sphere(400, radius=1.0)
+    samples, targets = far_field_samples(shape.points, shape.normals, c=0.05)
+    r = np.linalg.norm(samples, axis=1)
+    assert np.all(np.sign(targets) == np.sign(r - 1))
+    assert np.all(np.abs(targets) > 0.15)
+    np.testing.assert_allclose(np.abs(targets), np.abs(r - 1), atol=0.15)  # nearest data point ≈ nearest surface point
+
+
+def test_exact_shape_costs_nothing_and_a_spurious_circle_is_penalised():
+    shape = synthetic.circle(200, radius=1.0)
+    exact = synthetic.from_terms(2, 4, {(0, 0): -1, (2, 0): 1, (0, 2): 1})
+    # (x² + y² − 1)((x − 1.5)² + y² − 0.04): the unit circle plus a small loop away from the data
+    circle = {(0, 0): -1, (2, 0): 1, (0, 2): 1}
+    loop = {(0, 0): 1.5**2 - 0.04, (1, 0): -3.0, (2, 0): 1, (0, 2): 1}
+    product = {}
+    for e1, c1 in circle.items():
+        for e2, c2 in loop.items():
+            e = (e1[0] + e2[0], e1[1] + e2[1])
+            product[e] = product.get(e, 0) + c1 * c2
+    spurious = synthetic.from_terms(2, 4, product)
+    term = FarFieldTerm.from_data(shape.points, shape.normals, 4, weight=1.0)
+    assert term(exact.coefficients)[0] == 0
+    assert term(spurious.coefficients)[0] > 0.01
+    assert term(-exact.coefficients)[0] > 1.0  # everything on the wrong side
+
+
+@pytest.mark.parametrize("dim,degree", [(2, 4), (3, 4)])
+def test_gradient_matches_finite_differences(dim, degree, rng):
+    shape = synthetic.circle(80) if dim == 2 else synthetic.sphere(200)
+    term = FarFieldTerm.from_data(shape.points, shape.normals, degree, weight=0.7)
+    a = rng.normal(size=n_coefficients(dim, degree))
+    value, grad = term.value_and_grad(a)
+    assert value == pytest.approx(term(a)[0])
+    h = 1e-6
+    fd = np.array([(term(a + h * e)[0] - term(a - h * e)[0]) / (2 * h) for e in np.eye(len(a))])
+    np.testing.assert_allclose(grad, fd, atol=1e-6 * max(1.0, np.abs(fd).max()))
+
+
+def test_scale_invariance_and_population_vectorisation(rng):
+    shape = synthetic.circle(80)
+    term = FarFieldTerm.from_data(shape.points, shape.normals, 4, weight=1.0)
+    pop = rng.normal(size=(7, 15))
+    values = term(pop)
+    np.testing.assert_allclose(values, [term(p)[0] for p in pop])
+    np.testing.assert_allclose(term(3.5 * pop), values)
+
+
+def test_weight_zero_is_the_papers_objective_exactly(rng):
+    shape = synthetic.ellipse(120)
+    plain = Objective(shape.points, shape.normals, 4)
+    with_term = Objective(shape.points, shape.normals, 4,
+                          terms=[FarFieldTerm.from_data(shape.points, shape.normals, 4, weight=0.0)])
+    pop = rng.normal(size=(9, 15))
+    np.testing.assert_array_equal(with_term(pop), plain(pop))
+    v0, g0 = plain.value_and_grad(pop[0])
+    v1, g1 = with_term.value_and_grad(pop[0])
+    assert v0 == v1
+    np.testing.assert_array_equal(g0, g1)
+
+
+def test_far_field_rows_remove_the_spurious_sheets_of_3l_on_a_sphere():
+    from ipfit.quality import quality
+
+    shape = synthetic.sphere(500)
+    plain = quality(ipfit.fit_3l(shape.points, shape.normals, 4), shape.points)
+    far = quality(ipfit.fit_3l(shape.points, shape.normals, 4, far_weight=1e-3), shape.points)
+    assert plain.n_spurious > 0  # the issue's example: 3L at degree 4 grows extra components
+    assert far.n_spurious == 0 and far.n_components == 1 and far.closed
+    assert far.f_score >= plain.f_score
+
+
+def test_far_field_weight_zero_is_plain_3l(rng):
+    shape = synthetic.ellipse(100)
+    a = ipfit.fit_3l(shape.points, shape.normals, 4, far_weight=0.0)
+    b = ipfit.fit_3l(shape.points, shape.normals, 4)
+    np.testing.assert_array_equal(a.coefficients, b.coefficients)
