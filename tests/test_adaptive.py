@@ -37,7 +37,7 @@ def test_an_ellipse_needs_degree_two():
     assert result.selected_degree == 2
     assert result.reason == "criterion"
     assert [d.degree for d in result.degrees] == [2, 4]
-    assert result.degrees[0].smoothness == pytest.approx(1.0, abs=1e-6)
+    assert result.degrees[0].smoothness == pytest.approx(1.0, abs=1e-4)  # 3L is exact up to O(c²)
 
 
 def test_result_keeps_the_whole_path_and_obeys_its_own_rule(rng):

@@ -10,7 +10,15 @@ from __future__ import annotations
 from . import basis
 from .exceptions import ConditioningWarning, InvalidInputError, IpfitError, IpfitWarning, ReadError
 from .linear import LINEAR_METHODS, fit_3l, fit_gradient_one, fit_linear, fit_lstsq, fit_ridge, fit_taubin
+from .adaptive import AdaptiveResult, DegreeResult, fit_adaptive, select_degree
+from .export import save_zero_set
+from .farfield import FarFieldTerm, far_field_samples
+from .objective import Measures, Objective, measures
+from .plotting import plot_curve, plot_result, plot_smoothness, plot_surface
 from .polynomial import ImplicitPolynomial, Normalization
+from .quality import Quality, quality
+from .refine import RefineResult, refine
+from .zeroset import ZeroSet, extract_zero_set, grid_values
 
 __version__ = "0.1.0"
 
@@ -24,6 +32,27 @@ __all__ = [
     "fit_gradient_one",
     "fit_linear",
     "LINEAR_METHODS",
+    "measures",
+    "Measures",
+    "Objective",
+    "refine",
+    "RefineResult",
+    "fit_adaptive",
+    "AdaptiveResult",
+    "DegreeResult",
+    "select_degree",
+    "far_field_samples",
+    "FarFieldTerm",
+    "ZeroSet",
+    "extract_zero_set",
+    "grid_values",
+    "save_zero_set",
+    "Quality",
+    "quality",
+    "plot_curve",
+    "plot_surface",
+    "plot_smoothness",
+    "plot_result",
     "IpfitError",
     "InvalidInputError",
     "ReadError",

@@ -3,11 +3,13 @@
 Kept apart from :mod:`ipfit.objective` so that ``import ipfit`` does not pay numba's import
 time; the first :class:`~ipfit.objective.Objective` evaluation loads (and caches) it.
 
-Threading: the kernel is *serial* on purpose. It runs between two OpenBLAS calls on a block
-of points whose products are still in cache, and OpenBLAS keeps its worker threads spinning
-for a while after each call; numba's parallel layers (workqueue, omp) then compete with those
-threads for the cores and were measured 2-50x slower than the serial loop on a 2-core machine.
-The serial reduction costs a fraction of the products anyway (see benchmarks/bench_objective.py).
+Threading: the kernel itself is serial and releases the GIL (``nogil``); parallelism comes
+from :class:`~ipfit.objective.Objective` running blocks of points on its own worker threads,
+each with single-threaded BLAS followed by this reduction while the block's products are
+still in cache. numba's parallel layers are not used: with OpenBLAS's worker threads spinning
+between calls, ``prange`` over the reduction was measured 2-50x slower than a serial loop on a
+2-core machine, and the worker-thread design gets both the products and the reduction onto
+both cores without either runtime waiting for the other.
 """
 
 from __future__ import annotations

@@ -1,11 +1,10 @@
 """Normal vectors for point clouds: estimation, consistent orientation and comparison.
 
 :func:`estimate_normals` fits a tangent line/plane to each point's k nearest neighbours
-(Hoppe et al. 1992) and :func:`orient_normals` makes the signs consistent by propagating
-along a minimum spanning tree of the neighbour graph, seeded at extreme points whose outward
-direction is known, so that closed shapes get outward normals. :func:`contour_normals` gives
-the exact-order alternative for ordered 2D contours, and :func:`normal_agreement` compares two
-sets of normals.
+(Hoppe et al. 1992); :func:`orient_normals` makes the signs consistent by propagation along a
+minimum spanning tree of the neighbour graph, seeded at points whose outward direction is
+known, so that closed shapes get outward normals. :func:`contour_normals` gives the normals of
+an ordered 2D contour, and :func:`normal_agreement` compares two sets of normals.
 """
 
 from __future__ import annotations
@@ -16,7 +15,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import sparse
 from scipy.sparse import csgraph
-from scipy.spatial import cKDTree
+from scipy.sparse.linalg import spsolve
+from scipy.spatial import ConvexHull, QhullError, cKDTree
 
 from ._validation import as_points, check_int, error
 
@@ -29,28 +29,26 @@ __all__ = [
     "Agreement",
 ]
 
-# Default neighbourhood sizes. A curve is a 1-manifold: k points span about k/2 samples on
-# each side, so 10 averages the pixel staircase of traced contours (steps of 1 and sqrt(2))
-# over ~5 px while staying narrower than the thin parts of typical silhouettes. A surface
-# needs a 2D patch: 15 neighbours is about two rings around the point, enough to average
-# scanner noise yet local enough for the ears of the bunny; larger k blurs creases and lets
-# neighbourhoods reach across thin parts.
-DEFAULT_K = {2: 10, 3: 15}
+# Default neighbourhood sizes (the point itself included). A contour is a curve: k points
+# reach about k/2 samples to each side. 6 (±2-3 samples) is enough to average the 45° steps of
+# pixel-traced contours, and small enough not to round off the tips of coarse polygons (the
+# 200-point airplane) nor to reach across thin parts. A surface needs a 2D patch: 12 is about
+# the first two rings of neighbours, which averages scanner noise on the bunny and the duck
+# while staying inside thin parts (ears, beak); larger k blurs creases.
+DEFAULT_K = {2: 6, 3: 12}
 
-# Edge weight of the orientation graph: 1 − |n_i·n_j| (Hoppe) plus a penalty for edges that
-# leave the tangent planes. Hoppe's weight alone is smallest between the two sides of a thin
-# part (anti-parallel normals, |n_i·n_j| = 1), which is exactly where propagation must not
-# go; the penalty |d·n| / |d| is ~0 along the surface and ~1 across it.
-_CROSSING_PENALTY = 1.0
-# Kruskal treats zero weights as missing edges; this keeps perfectly aligned edges in.
+# Kruskal treats zero weights as missing edges; this keeps perfectly consistent edges in.
 _WEIGHT_FLOOR = 1e-9
+# Tree links heavier than this are doubtful: the pieces between them are re-oriented as wholes.
+_DOUBTFUL = 0.1
+_CHUNK = 1 << 15  # points per block of the batched eigen-decomposition: bounds memory
 
 
 class Agreement(NamedTuple):
     """How two sets of normals agree, row by row (rows with NaN in either are skipped).
 
-    ``angles`` are between the lines (0-90°, orientation ignored); ``flipped`` marks rows whose
-    normals point to opposite sides (negative dot product).
+    ``angles`` are between the normal lines in degrees (0-90, orientation ignored);
+    ``flipped`` marks rows whose normals point to opposite sides (negative dot product).
     """
 
     angles: NDArray[np.float64]
@@ -60,11 +58,8 @@ class Agreement(NamedTuple):
     compared: int
 
 
-def _default_k(k, dim: int, n: int, name: str = "k") -> int:
-    if k is None:
-        k = DEFAULT_K[dim]
-    else:
-        k = check_int(k, name, minimum=dim)
+def _default_k(k, dim: int, n: int) -> int:
+    k = DEFAULT_K[dim] if k is None else check_int(k, "k", minimum=dim)
     return int(min(k, n))
 
 
@@ -73,16 +68,23 @@ def _neighbours(points: NDArray, k: int, workers: int) -> NDArray[np.intp]:
     return np.asarray(idx, dtype=np.intp).reshape(len(points), k)
 
 
-def _pca_normals(points: NDArray, idx: NDArray[np.intp]) -> NDArray[np.float64]:
-    nb = points[idx]  # (N, k, D)
-    centred = nb - nb.mean(axis=1, keepdims=True)
-    cov = np.matmul(centred.transpose(0, 2, 1), centred)
-    # Scale each covariance to unit trace: eigh's absolute tolerances then do not depend on
-    # the units of the data (the bunny is ~0.1 m wide, silhouettes are hundreds of pixels).
-    trace = np.trace(cov, axis1=1, axis2=2)
-    cov /= np.where(trace > 0, trace, 1.0)[:, None, None]
-    _, vectors = np.linalg.eigh(cov)
-    return np.ascontiguousarray(vectors[:, :, 0])  # eigenvalues ascend: smallest spread
+def _pca_normals(points: NDArray, idx: NDArray[np.intp]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Direction of least spread of each neighbourhood, and how flat the neighbourhood is."""
+    n, dim = points.shape
+    normals = np.empty((n, dim))
+    flatness = np.empty(n)
+    for start in range(0, n, _CHUNK):  # blocks of points, not points: bounds the (B, k, D) copy
+        nb = points[idx[start:start + _CHUNK]]
+        centred = nb - nb.mean(axis=1, keepdims=True)
+        cov = np.matmul(centred.transpose(0, 2, 1), centred)
+        # Unit trace: eigh's tolerances and the flatness no longer depend on the data's units.
+        trace = np.trace(cov, axis1=1, axis2=2)
+        cov /= np.where(trace > 0, trace, 1.0)[:, None, None]
+        values, vectors = np.linalg.eigh(cov)  # ascending eigenvalues
+        normals[start:start + _CHUNK] = vectors[:, :, 0]
+        # Share of the spread along the normal: 0 on a flat patch, 1/D when isotropic.
+        flatness[start:start + _CHUNK] = np.clip(1.0 - dim * values[:, 0], 0.0, 1.0)
+    return normals, flatness
 
 
 def estimate_normals(points: ArrayLike, k: int | None = None, *, orient: bool = True,
@@ -93,11 +95,11 @@ def estimate_normals(points: ArrayLike, k: int | None = None, *, orient: bool = 
     ----------
     points : (N, D) array, D = 2 or 3, N >= 3
     k : int, optional
-        Neighbours per point (the point itself included); default 10 in 2D, 15 in 3D
+        Neighbours per point, the point itself included; default 6 in 2D, 12 in 3D
         (:data:`DEFAULT_K`). Raise it for noisy data, lower it for thin parts.
     orient : bool
-        Make the signs consistent (:func:`orient_normals`), outward for closed shapes. If
-        False the signs are arbitrary.
+        Make the signs consistent, outward for closed shapes (see :func:`orient_normals`).
+        If False the signs are arbitrary.
     workers : int
         Threads for the neighbour search (-1: all cores).
 
@@ -111,23 +113,22 @@ def estimate_normals(points: ArrayLike, k: int | None = None, *, orient: bool = 
     True
     """
     pts = as_points(points, min_points=3)
-    k = _default_k(k, pts.shape[1], len(pts))
-    idx = _neighbours(pts, k, workers)
-    normals = _pca_normals(pts, idx)
-    if orient:
-        normals = _orient(pts, normals, idx)
-    return normals
+    idx = _neighbours(pts, _default_k(k, pts.shape[1], len(pts)), workers)
+    normals, flatness = _pca_normals(pts, idx)
+    return _orient(pts, normals, idx, flatness) if orient else normals
 
 
 def orient_normals(points: ArrayLike, normals: ArrayLike, k: int | None = None, *,
                    workers: int = -1) -> NDArray[np.float64]:
-    """Flip unoriented normals so that neighbours agree and closed shapes point outward.
+    """Flip normals so that neighbours agree and closed shapes point outward.
 
     The signs propagate along a minimum spanning tree of the k-nearest-neighbour graph
-    (weight 1 − |n_i·n_j|, plus a penalty for edges crossing the tangent plane), one tree
-    per connected component, each seeded by its extreme points: at the point farthest from
-    the component's centroid, and at the extremes along each axis, the outward normal of a
-    closed shape is known.
+    (Hoppe et al. 1992), rooted at anchors whose outward direction is known: the vertices of
+    the convex hull, and in each connected component its point farthest from its centroid.
+    Two changes to Hoppe's 1 − |n_i·n_j| make it robust on thin parts and sharp tips: the
+    edge weight compares n_i with n_j mirrored across the bisector of the two points, and
+    the pieces of the tree between doubtful links are re-oriented as wholes by a least-squares
+    vote of all neighbour edges and anchors.
 
     Parameters
     ----------
@@ -152,56 +153,52 @@ def orient_normals(points: ArrayLike, normals: ArrayLike, k: int | None = None, 
     if not (length > 0).all():
         raise error("normals", "non-zero normal vectors", f"{int((length == 0).sum())} zero-length normals",
                     "Estimate them with ipfit.estimate_normals.")
-    k = _default_k(k, pts.shape[1], len(pts))
-    return _orient(pts, nrm / length[:, None], _neighbours(pts, k, workers))
+    idx = _neighbours(pts, _default_k(k, pts.shape[1], len(pts)), workers)
+    return _orient(pts, nrm / length[:, None], idx, np.ones(len(pts)))
 
 
-def _orient(points: NDArray, normals: NDArray, idx: NDArray[np.intp]) -> NDArray[np.float64]:
+def _orient(points: NDArray, normals: NDArray, idx: NDArray[np.intp], flatness: NDArray) -> NDArray[np.float64]:
     n = len(points)
     rows = np.repeat(np.arange(n), idx.shape[1])
     cols = idx.ravel()
-    keep = rows != cols
-    lo, hi = np.minimum(rows[keep], cols[keep]), np.maximum(rows[keep], cols[keep])
-    # Each undirected edge once: COO → CSR would otherwise sum the weights of duplicates.
-    key = np.unique(lo.astype(np.int64) * n + hi)
-    lo, hi = key // n, key % n
-    d = points[hi] - points[lo]
-    dlen = np.linalg.norm(d, axis=1)
-    d = d / np.where(dlen > 0, dlen, 1.0)[:, None]
-    align = np.abs(np.einsum("ij,ij->i", normals[lo], normals[hi]))
-    crossing = 0.5 * (np.abs(np.einsum("ij,ij->i", d, normals[lo])) + np.abs(np.einsum("ij,ij->i", d, normals[hi])))
-    weight = np.maximum(1.0 - align, 0.0) + _CROSSING_PENALTY * crossing + _WEIGHT_FLOOR
-    graph = sparse.csr_matrix((weight, (lo, hi)), shape=(n, n))
-    tree = csgraph.minimum_spanning_tree(graph)
-    ncomp, labels = csgraph.connected_components(tree, directed=False)
+    # Each undirected edge once (COO → CSR would sum duplicate weights): j→i is dropped when i→j
+    # is also listed, i.e. when i is among j's neighbours too.
+    mutual = (idx[cols] == rows[:, None]).any(axis=1)
+    keep = (rows != cols) & ((rows < cols) | ~mutual)
+    lo, hi = rows[keep], cols[keep]
+    agree = _consistency(points, normals, lo, hi)
+    # Links through curved or rough neighbourhoods (creases, tips, noise) are less trustworthy
+    # than their normals' agreement says: the flatness terms make the tree avoid them.
+    doubt = 1.0 - flatness
+    weight = np.maximum(1.0 - np.abs(agree), 0.0) + doubt[lo] + doubt[hi] + _WEIGHT_FLOOR
+    ncomp, labels = csgraph.connected_components(sparse.csr_matrix((weight, (lo, hi)), shape=(n, n)),
+                                                 directed=False)
 
-    # Root every component at its point farthest from its centroid (the whole shape lies in
-    # the ball through that point, so the surface normal there is along point − centroid),
-    # through one virtual node so that a single breadth-first search reaches everything.
-    counts = np.bincount(labels, minlength=ncomp).astype(float)
-    centroid = np.stack([np.bincount(labels, points[:, j], ncomp) for j in range(points.shape[1])], axis=1)
-    centroid /= counts[:, None]
-    radial = points - centroid[labels]
-    seeds = _argmax_per_group(np.einsum("ij,ij->i", radial, radial), labels, ncomp)
-
-    tree = tree.tocoo()
+    # Anchors hang from one virtual node: the tree roots each branch at the anchor that reaches
+    # it most cheaply, so one ambiguous link cannot flip everything behind it.
+    anchor, direction = _anchors(points, labels, ncomp)
+    anchor_cos = np.einsum("ij,ij->i", normals[anchor], direction)
+    anchor_weight = np.maximum(1.0 - np.abs(anchor_cos), 0.0) + doubt[anchor] + _WEIGHT_FLOOR
     virtual = n
-    r = np.concatenate([tree.row, np.full(ncomp, virtual)])
-    c = np.concatenate([tree.col, seeds])
-    adjacency = sparse.csr_matrix((np.ones(len(r)), (r, c)), shape=(n + 1, n + 1))
-    _, pred = csgraph.breadth_first_order(adjacency, virtual, directed=False, return_predecessors=True)
+    graph = sparse.csr_matrix((np.concatenate([weight, anchor_weight]),
+                               (np.concatenate([lo, anchor]), np.concatenate([hi, np.full(len(anchor), virtual)]))),
+                              shape=(n + 1, n + 1))
+    tree = csgraph.minimum_spanning_tree(graph)
+    _, pred = csgraph.breadth_first_order(tree, virtual, directed=False, return_predecessors=True)
 
-    parent = pred[:n].copy()
-    at_seed = parent == virtual
+    parent = pred[:n].astype(np.intp)
+    parent[parent < 0] = virtual  # unreachable cannot happen (every component has an anchor); be safe
     flip = np.zeros(n + 1, dtype=bool)
-    nonseed = ~at_seed
-    flip[:n][nonseed] = np.einsum("ij,ij->i", normals[nonseed], normals[parent[nonseed]]) < 0
-    seed_dir = radial[at_seed]
-    flip[:n][at_seed] = np.einsum("ij,ij->i", normals[at_seed], seed_dir) < 0
+    inner = np.flatnonzero(parent != virtual)
+    flip[inner] = _consistency(points, normals, inner, parent[inner]) < 0
+    cos_to_anchor = np.zeros(n)
+    cos_to_anchor[anchor] = anchor_cos
+    rooted = np.flatnonzero(parent == virtual)
+    flip[rooted] = cos_to_anchor[rooted] < 0
 
     # Sign of each node = parity of the flips on its path to the root, by pointer jumping:
-    # log2(depth) vectorised rounds instead of a walk over the tree.
-    anc = np.append(parent, virtual).astype(np.intp)
+    # log2(depth) vectorised rounds instead of a walk down the tree.
+    anc = np.append(parent, virtual)
     parity = flip
     while True:
         done = anc == virtual
@@ -209,21 +206,80 @@ def _orient(points: NDArray, normals: NDArray, idx: NDArray[np.intp]) -> NDArray
             break
         parity = parity ^ (parity[anc] & ~done)
         anc = np.where(done, anc, anc[anc])
-    oriented = np.where(parity[:n, None], -normals, normals)
+    sign = np.where(parity[:n], -1.0, 1.0)
 
-    # The single seed can sit on a noisy tip; confirm each component's sign by a vote of its
-    # extreme points along ±each axis, where the outward normal is also known.
-    vote = np.zeros(ncomp)
-    for axis in range(points.shape[1]):
-        for sign in (1.0, -1.0):
-            at = _argmax_per_group(sign * points[:, axis], labels, ncomp)
-            vote += sign * oriented[at, axis]
-    vote += np.einsum("ij,ij->i", oriented[seeds], radial[seeds]) / np.maximum(
-        np.linalg.norm(radial[seeds], axis=1), np.finfo(float).tiny)
-    wrong = vote < 0
-    if wrong.any():
-        oriented = np.where(wrong[labels][:, None], -oriented, oriented)
-    return oriented
+    # A tree decides each doubtful link (a tip, a crease) on one edge alone. Cut it there and
+    # flip the pieces as wholes to agree best, in least squares, with all neighbour edges
+    # (signed by their agreement and flatness) and all anchors: a small system, one unknown
+    # per piece.
+    t = tree.tocoo()
+    sure = (t.row < n) & (t.col < n) & (t.data < _DOUBTFUL)
+    npieces, piece = csgraph.connected_components(
+        sparse.csr_matrix((np.ones(int(sure.sum())), (t.row[sure], t.col[sure])), shape=(n, n)), directed=False)
+    if npieces > 1:
+        vote = agree * flatness[lo] * flatness[hi] * sign[lo] * sign[hi]
+        across = piece[lo] != piece[hi]
+        pi, pj, v = piece[lo][across], piece[hi][across], vote[across]
+        coupling = sparse.csr_matrix((np.concatenate([v, v]), (np.concatenate([pi, pj]), np.concatenate([pj, pi]))),
+                                     shape=(npieces, npieces))
+        degree = np.bincount(np.concatenate([pi, pj]), np.abs(np.concatenate([v, v])), npieces)
+        trust = flatness[anchor] * np.abs(anchor_cos)
+        pull = np.bincount(piece[anchor], trust, npieces)
+        rhs = np.bincount(piece[anchor], trust * np.sign(anchor_cos) * sign[anchor], npieces)
+        # Signed graph Laplacian + anchor terms: positive definite wherever a piece connects to
+        # an anchor; the tiny shift keeps isolated, unanchored pieces (x = 0: left as they are) solvable.
+        system = (sparse.diags(degree + pull + 1e-12) - coupling).tocsc()
+        x = spsolve(system, rhs, permc_spec="MMD_AT_PLUS_A")
+        sign *= np.where(x[piece] < 0, -1.0, 1.0)
+    return normals * sign[:, None]
+
+
+def _consistency(points: NDArray, normals: NDArray, i: NDArray, j: NDArray) -> NDArray[np.float64]:
+    """n_i · R n_j, R the mirror across the bisector plane of p_i and p_j (König & Gumhold 2009).
+
+    Points on a common circle or sphere with outward normals give exactly +1, whatever the
+    curvature. The outward normals across a sharp tip or on the two sides of a thin part are
+    mirror images, not parallel, so Hoppe's n_i · n_j alone would orient them wrongly.
+    """
+    e = points[j] - points[i]
+    length = np.linalg.norm(e, axis=1)
+    e /= np.where(length > 0, length, 1.0)[:, None]
+    ni, nj = normals[i], normals[j]
+    return np.einsum("ij,ij->i", ni, nj) - 2.0 * np.einsum("ij,ij->i", ni, e) * np.einsum("ij,ij->i", nj, e)
+
+
+def _anchors(points: NDArray, labels: NDArray, ncomp: int) -> tuple[NDArray[np.intp], NDArray[np.float64]]:
+    """Points with a known outward direction (unit vectors) on closed shapes.
+
+    * The vertices of the convex hull: its facets are supporting planes, so the outward
+      normal there is on the side of the mean of the adjacent facets' normals.
+    * In each connected component, the point farthest from the component's centroid: the
+      component lies in the ball through it, so its normal is along point − centroid.
+    """
+    dim = points.shape[1]
+    counts = np.bincount(labels, minlength=ncomp).astype(float)
+    centroid = np.stack([np.bincount(labels, points[:, j], ncomp) for j in range(dim)], axis=1) / counts[:, None]
+    radial = points - centroid[labels]
+    seeds = _argmax_per_group(np.einsum("ij,ij->i", radial, radial), labels, ncomp)
+    idx, dirs = [seeds], [radial[seeds]]
+    try:
+        hull = ConvexHull(points)
+    except (QhullError, ValueError):
+        pass  # flat or degenerate cloud: the seeds alone orient it
+    else:
+        acc = np.zeros_like(points)
+        for j in range(dim):
+            np.add.at(acc, hull.simplices[:, j], hull.equations[:, :dim])
+        idx.insert(0, hull.vertices)
+        dirs.insert(0, acc[hull.vertices])
+    idx = np.concatenate(idx)
+    dirs = np.concatenate(dirs)
+    length = np.linalg.norm(dirs, axis=1)
+    # A component whose points all coincide has no outward side: any direction will do.
+    dirs[length == 0, 0], length[length == 0] = 1.0, 1.0
+    dirs /= length[:, None]
+    idx, first = np.unique(idx, return_index=True)
+    return idx.astype(np.intp), dirs[first]
 
 
 def _argmax_per_group(values: NDArray, labels: NDArray, ngroups: int) -> NDArray[np.intp]:
@@ -232,10 +288,10 @@ def _argmax_per_group(values: NDArray, labels: NDArray, ngroups: int) -> NDArray
     return order[last]
 
 
-def contour_normals(points: ArrayLike, *, closed: bool = True) -> NDArray[np.float64]:
+def contour_normals(points: ArrayLike, *, closed: bool = True, span: int = 1) -> NDArray[np.float64]:
     """Outward unit normals of an ordered 2D contour: perpendiculars of central differences.
 
-    The outward side is found from the sign of the enclosed area (for an open contour, of the
+    The outward side comes from the sign of the enclosed area (for an open contour, of the
     area closed by the chord between its ends), so either direction of travel works.
 
     Parameters
@@ -243,24 +299,31 @@ def contour_normals(points: ArrayLike, *, closed: bool = True) -> NDArray[np.flo
     points : (N, 2) array, in order along the contour, N >= 3
     closed : bool
         Whether the last point connects back to the first.
+    span : int
+        Difference between the points ``span`` places ahead and behind. On pixel-traced
+        contours span=1 only sees the 45° staircase; 2 or 3 averages it.
+
+    >>> square = [[0, 0], [1, 0], [2, 0], [2, 1], [2, 2], [1, 2], [0, 2], [0, 1]]
+    >>> contour_normals(square)[1].tolist()
+    [0.0, -1.0]
     """
     pts = as_points(points, dims=(2,), min_points=3)
+    span = check_int(span, "span", minimum=1, maximum=max(1, (len(pts) - 1) // 2))
     if closed:
-        nxt, prv = np.roll(pts, -1, axis=0), np.roll(pts, 1, axis=0)
+        nxt, prv = np.roll(pts, -span, axis=0), np.roll(pts, span, axis=0)
     else:
-        nxt = np.vstack([pts[1:], pts[-1:]])
-        prv = np.vstack([pts[:1], pts[:-1]])
+        at = np.arange(len(pts))
+        nxt = pts[np.minimum(at + span, len(pts) - 1)]
+        prv = pts[np.maximum(at - span, 0)]
     tangent = nxt - prv
-    # A spike that goes out and back has a zero central difference: use the forward step.
-    zero = ~(np.abs(tangent).sum(axis=1) > 0)
-    if zero.any():
-        tangent[zero] = (nxt - pts)[zero]
-        still = ~(np.abs(tangent).sum(axis=1) > 0)
-        tangent[still] = (pts - prv)[still]
+    # A spike that goes out and back has a zero central difference: use a one-sided one.
+    for fallback in (nxt - pts, pts - prv):
+        zero = ~(np.abs(tangent).sum(axis=1) > 0)
+        tangent[zero] = fallback[zero]
     x, y = pts[:, 0] - pts[:, 0].mean(), pts[:, 1] - pts[:, 1].mean()
-    area2 = float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
+    twice_area = float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
     normal = np.column_stack([tangent[:, 1], -tangent[:, 0]])  # right of travel: outward if counter-clockwise
-    if area2 < 0:
+    if twice_area < 0:
         normal = -normal
     length = np.linalg.norm(normal, axis=1)
     if not (length > 0).all():
@@ -272,18 +335,23 @@ def contour_normals(points: ArrayLike, *, closed: bool = True) -> NDArray[np.flo
 def normal_agreement(estimated: ArrayLike, reference: ArrayLike) -> Agreement:
     """Compare two sets of normals row by row.
 
-    Rows where either set has NaN (e.g. mesh vertices without faces) are skipped.
+    Rows where either has NaN (e.g. mesh vertices without faces) are skipped.
 
     Returns
     -------
     Agreement
-        Angles between the normal lines in degrees, which rows are flipped, the median angle
-        and the fraction flipped.
+        Angles between the normal lines in degrees, which rows are flipped, the median
+        angle, the fraction flipped and the number of rows compared.
+
+    >>> a = normal_agreement([[1.0, 0.0], [0.0, 1.0]], [[1.0, 0.0], [0.0, -1.0]])
+    >>> a.median_angle, a.flipped_fraction
+    (0.0, 0.5)
     """
     est = np.asarray(estimated, dtype=np.float64)
     ref = np.asarray(reference, dtype=np.float64)
-    if est.shape != ref.shape or est.ndim != 2:
-        raise error("reference", f"an array of the same shape as estimated {est.shape}", f"shape {ref.shape}")
+    if est.ndim != 2 or est.shape != ref.shape:
+        raise error("reference", f"an array of the same shape as estimated {est.shape}", f"shape {ref.shape}",
+                    "Pass one normal per row of the same points.")
     ok = np.isfinite(est).all(axis=1) & np.isfinite(ref).all(axis=1)
     e, r = est[ok], ref[ok]
     denom = np.linalg.norm(e, axis=1) * np.linalg.norm(r, axis=1)
@@ -291,5 +359,6 @@ def normal_agreement(estimated: ArrayLike, reference: ArrayLike) -> Agreement:
     angles = np.degrees(np.arccos(np.clip(np.abs(cos), 0.0, 1.0)))
     flipped = cos < 0
     m = int(ok.sum())
-    return Agreement(angles, flipped, float(np.median(angles)) if m else float("nan"),
-                     float(flipped.mean()) if m else float("nan"), m)
+    if m == 0:
+        return Agreement(angles, flipped, float("nan"), float("nan"), 0)
+    return Agreement(angles, flipped, float(np.median(angles)), float(flipped.mean()), m)

@@ -41,8 +41,16 @@ __all__ = [
 CURVE_COLOR = "#1f5fbf"
 SURFACE_COLOR = (0.55, 0.70, 0.92)
 POINT_COLOR = "0.45"
-COMPARISON_TITLES = {"lstsq": "classic linear", "3l": "3L", "ridge": "3L + ridge"}
+METHOD_TITLES = {"lstsq": "classic linear", "3l": "3L", "ridge": "3L + ridge", "taubin": "Taubin",
+                 "gradient_one": "gradient-one", "de": "DE", "pso": "PSO", "de+polish": "DE + polish",
+                 "pso+polish": "PSO + polish"}
 _PLOT_RESOLUTION = {2: 400, 3: 72}
+
+
+def _method_label(name) -> str | None:
+    if not name:
+        return None
+    return METHOD_TITLES.get(str(name).lower(), str(name))
 
 
 # -- matplotlib access ---------------------------------------------------------------------
@@ -105,12 +113,18 @@ def plot_points(points: ArrayLike, ax=None, *, max_points: int = 4000, size: flo
     return ax
 
 
+def _camera(ax, view: tuple[float, float], up: str) -> None:
+    from ._validation import check_choice
+
+    ax.view_init(elev=view[0], azim=view[1], vertical_axis=check_choice(up, "up", ("x", "y", "z")))
+
+
 def _frame(ax, bounds: NDArray, dim: int, axis_off: bool) -> None:
     ax.set_xlim(*bounds[0])
     ax.set_ylim(*bounds[1])
     if dim == 3:
         ax.set_zlim(*bounds[2])
-        ax.set_box_aspect(tuple(np.ptp(bounds, axis=1)))
+        ax.set_box_aspect(tuple(np.ptp(bounds, axis=1)), zoom=1.15)  # 3D axes leave wide margins
     else:
         ax.set_aspect("equal")
     if axis_off:
@@ -159,7 +173,8 @@ def _shaded_colors(vertices: NDArray, faces: NDArray, color, light=(0.35, -0.45,
 def plot_surface(poly: ImplicitPolynomial | None, points: ArrayLike | None = None, ax=None, *,
                  zero_set: ZeroSet | None = None, bounds: ArrayLike | None = None, margin: float = 0.25,
                  resolution: int | None = None, max_faces: int = 30000, color=SURFACE_COLOR,
-                 show_points: bool = False, view: tuple[float, float] = (20.0, -60.0), axis_off: bool = False):
+                 show_points: bool = False, view: tuple[float, float] = (20.0, -60.0), up: str = "z",
+                 axis_off: bool = False):
     """Draw the zero set of a 3D polynomial as a shaded mesh; returns ``ax`` (a 3D axes).
 
     Parameters
@@ -170,6 +185,7 @@ def plot_surface(poly: ImplicitPolynomial | None, points: ArrayLike | None = Non
     max_faces : a mesh with more faces is re-extracted on a coarser grid (matplotlib
         draws every face as a polygon; beyond some 10⁴ faces it only gets slower).
     view : (elevation, azimuth) in degrees.
+    up : the axis drawn vertically, 'x', 'y' or 'z' (scanned meshes such as the bunny are y-up).
     """
     pts = None if points is None else as_points(points, dims=(3,))
     zs = _zero_set_for(poly, zero_set, pts, bounds, margin, resolution)
@@ -186,12 +202,13 @@ def plot_surface(poly: ImplicitPolynomial | None, points: ArrayLike | None = Non
         faces = zs.faces
         if len(faces) > max_faces:  # no polynomial to re-extract from: thin out evenly
             faces = faces[:: math.ceil(len(faces) / max_faces)]
+        # Without antialiasing, neighbouring faces leave no hairline seams between them.
         collection = Poly3DCollection(zs.vertices[faces], facecolors=_shaded_colors(zs.vertices, faces, color),
-                                      edgecolors="none", linewidths=0)
+                                      edgecolors="none", linewidths=0, antialiased=False)
         ax.add_collection3d(collection)
     if show_points and pts is not None:
         plot_points(pts, ax)
-    ax.view_init(elev=view[0], azim=view[1])
+    _camera(ax, view, up)
     _frame(ax, zs.bounds, 3, axis_off)
     return ax
 
@@ -269,23 +286,25 @@ def result_view(result, source: str = "result") -> ResultView:
         raise ReadError(str(exc)) from None
     norm: Normalization = poly.normalization
 
-    def build(coefficients, what: str) -> ImplicitPolynomial:
+    def build(coefficients, what: str, own_norm=None) -> ImplicitPolynomial:
+        # Entries share the top-level normalisation unless they carry their own.
         try:
-            return ImplicitPolynomial.from_coefficients(coefficients, poly.dim, normalization=norm)
-        except (InvalidInputError, TypeError, ValueError) as exc:
+            entry_norm = norm if not own_norm else Normalization(own_norm["center"], own_norm["scale"])
+            return ImplicitPolynomial.from_coefficients(coefficients, poly.dim, normalization=entry_norm)
+        except (InvalidInputError, TypeError, ValueError, KeyError) as exc:
             raise ReadError(f"{source}: malformed {what} ({exc}). Regenerate the result with ipfit.") from None
 
     degrees = []
     for entry in data.get("degrees") or []:
         if not isinstance(entry, Mapping) or "degree" not in entry:
             raise ReadError(f"{source}: malformed \"degrees\" entry (no \"degree\"). Regenerate the result with ipfit.")
-        fit = build(entry["coefficients"], f"coefficients of degree {entry['degree']}") \
+        fit = build(entry["coefficients"], f"coefficients of degree {entry['degree']}", entry.get("normalization")) \
             if entry.get("coefficients") is not None else None
         degrees.append(DegreeFit(int(entry["degree"]), fit, dict(entry)))
     comparisons = {}
     for name, entry in (data.get("comparisons") or {}).items():
         if isinstance(entry, Mapping) and entry.get("coefficients") is not None:
-            comparisons[str(name)] = build(entry["coefficients"], f"comparison {name!r}")
+            comparisons[str(name)] = build(entry["coefficients"], f"comparison {name!r}", entry.get("normalization"))
     selected = data.get("selected_degree")
     bounds = data.get("bounds")
     if bounds is not None:
@@ -306,8 +325,8 @@ def _panel_bounds(view: ResultView, points: NDArray | None, margin: float) -> ND
 
 def plot_result(result, points: ArrayLike | None = None, path: str | os.PathLike | None = None, *,
                 title: str | None = None, margin: float = 0.25, resolution: int | None = None,
-                max_faces: int = 15000, view: tuple[float, float] = (20.0, -60.0), ncols: int = 4,
-                dpi: int = 110):
+                max_faces: int = 15000, view: tuple[float, float] = (20.0, -60.0), up: str = "z",
+                ncols: int = 4, dpi: int = 110):
     """A paper-style figure of a result (Figs. 8–13), optionally saved to ``path``.
 
     Panels, lettered (a), (b), ...: the original point cloud (3D, when ``points`` are
@@ -321,6 +340,7 @@ def plot_result(result, points: ArrayLike | None = None, path: str | os.PathLike
     points : the data (drawn under 2D curves; its box frames every panel).
     path : where to save the figure (atomically; format by extension).
     resolution : grid nodes along the box's longest side (default 400 in 2D, 72 in 3D).
+    view, up : 3D camera (elevation, azimuth) and vertical axis, see :func:`plot_surface`.
 
     Returns
     -------
@@ -341,10 +361,10 @@ def plot_result(result, points: ArrayLike | None = None, path: str | os.PathLike
     if fitted:
         for d in fitted:
             mark = " (selected)" if view_.selected == d.degree else ""
-            method = d.entry.get("method")
+            method = _method_label(d.entry.get("method"))
             panels.append((f"degree {d.degree}{mark}" + (f"\n{method}" if method else ""), ("fit", d.polynomial)))
     else:
-        method = view_.polynomial.method
+        method = _method_label(view_.polynomial.method)
         panels.append((f"degree {view_.polynomial.degree}" + (f", {method}" if method else ""),
                        ("fit", view_.polynomial)))
     smooth = [(d.degree, d.entry.get("smoothness")) for d in view_.degrees]
@@ -352,11 +372,11 @@ def plot_result(result, points: ArrayLike | None = None, path: str | os.PathLike
     if smooth:
         panels.append(("smoothness vs degree", ("smoothness", smooth)))
     for name, poly in view_.comparisons.items():
-        label = COMPARISON_TITLES.get(name.lower(), name)
+        label = _method_label(name)
         panels.append((f"{label}, degree {poly.degree}", ("fit", poly)))
 
-    ncols = max(1, min(ncols, len(panels)))
-    nrows = math.ceil(len(panels) / ncols)
+    nrows = math.ceil(len(panels) / max(1, ncols))
+    ncols = math.ceil(len(panels) / nrows)  # balance the rows: 5 panels as 3 + 2, not 4 + 1
     fig = Figure(figsize=(3.4 * ncols, 3.4 * nrows + (0.4 if title else 0)), layout="constrained")
     if dim == 3:
         import mpl_toolkits.mplot3d  # noqa: F401  registers the 3d projection
@@ -366,13 +386,13 @@ def plot_result(result, points: ArrayLike | None = None, path: str | os.PathLike
         ax = fig.add_subplot(nrows, ncols, index + 1, projection=projection)
         if kind == "points":
             plot_points(pts, ax)
-            ax.view_init(elev=view[0], azim=view[1])
+            _camera(ax, view, up)
             _frame(ax, box, 3, axis_off=True)
         elif kind == "fit" and dim == 2:
             plot_curve(payload, pts, ax, bounds=box, resolution=resolution, axis_off=True)
         elif kind == "fit":
             plot_surface(payload, None, ax, bounds=box, resolution=resolution, max_faces=max_faces, view=view,
-                         axis_off=True)
+                         up=up, axis_off=True)
         else:
             g, s = zip(*payload)
             plot_smoothness(g, s, view_.selected, ax)

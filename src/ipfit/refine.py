@@ -4,6 +4,21 @@
 swarm optimisation, seeding the initial population with linear fits so that the metaheuristic
 post-optimises them, and (in the recommended variants) polishes the best member with L-BFGS
 on the analytic gradient.
+
+Design notes:
+
+* The distance ignores positive scaling of the coefficients, so candidates live on a unit
+  sphere: every trial vector (DE) and new position (PSO) is projected back onto it.
+* By default the population moves in whitened coordinates y = R a (R from the QR of the
+  monomial matrix stacked with its derivatives, :meth:`~ipfit.objective.Objective.whitening`),
+  in which every direction changes f and ∇f on the data alike. In raw coefficients the
+  high-degree terms dominate and DE barely moves the seeds at degree ≥ 6 (the paper's
+  observation); ``search_space="coefficients"`` restores that behaviour.
+* The polish (L-BFGS, same whitening as preconditioner) starts from the metaheuristic's best
+  member and from the best seed, and keeps the better result. On the bundled data it brings
+  most of the improvement (see ``docs/refine-table.md``).
+* The seeds, measured one at a time in float64, are candidates of the final choice, so the
+  result is never worse than the best seed.
 """
 
 from __future__ import annotations
@@ -22,7 +37,7 @@ from . import basis
 from ._validation import (as_normals, as_points, check_choice, check_degree, check_int, check_nonnegative,
                           check_probability, check_rng, error)
 from .exceptions import IpfitError
-from .objective import DEFAULT_DELTA, Measures, Objective, _check_dtype
+from .objective import DEFAULT_DELTA, Measures, Objective, _check_dtype, single_threaded_blas
 from .optimize import DifferentialEvolution, OptimizeResult, ParticleSwarm, polish as run_polish, unit_rows
 from .polynomial import ImplicitPolynomial, Normalization
 
@@ -159,14 +174,15 @@ def _user_seeds(seeds, points, normals, degree, norm: Normalization, d: int):
             labels.append(f"seed{k}")
             coefs.append(arr)
     lin_labels, lin_coefs, notes = _linear_seeds(points, normals, degree, norm, specs) if specs else ([], [], [])
-    return labels + lin_labels, coefs + lin_coefs, notes
+    labels = labels + lin_labels
+    # Unique labels: seed_distances is keyed by them.
+    unique = [label if labels.count(label) == 1 else f"{label}#{k}" for k, label in enumerate(labels)]
+    return unique, coefs + lin_coefs, notes
 
 
 def _initial_population(seed_y: NDArray, size: int, n_seeded: int, rng: np.random.Generator) -> NDArray:
     """Seeds first (the best ones exactly), the rest scattered around random seeds."""
-    d = seed_y.shape[1] if seed_y.size else None
-    if seed_y.shape[0] == 0:
-        raise AssertionError("called without seeds")
+    d = seed_y.shape[1]
     pop = np.empty((size, d))
     n_exact = min(n_seeded, seed_y.shape[0])
     pop[:n_exact] = seed_y[:n_exact]
@@ -187,7 +203,7 @@ def refine(points: ArrayLike, normals: ArrayLike, degree: int, method: str = "de
            population: int | None = None, iterations: int = 500, seed_fraction: float = 0.1,
            seeds: Sequence[str | ImplicitPolynomial | ArrayLike] | None = None, chi: float = 0.729,
            c1: float = 2.05, c2: float = 2.05, F: float = 0.7, CR: float = 0.9, delta: float = DEFAULT_DELTA,
-           polish: int = 300, n_solutions: int = 5, rng=None,
+           polish: int = 1000, n_solutions: int = 5, rng=None,
            callback: Callable[[OptimizeResult], Any] | None = None, dtype=np.float64,
            search_space: str = "whitened") -> RefineResult:
     r"""Refine linear fits by minimising the paper's distance (Eq. 5) at a fixed degree.
@@ -223,7 +239,7 @@ def refine(points: ArrayLike, normals: ArrayLike, degree: int, method: str = "de
         DE differential weight 0.7 and crossover probability 0.9 (rand/1/bin).
     delta : float, default 0.25
         Penalty weight δ of the objective.
-    polish : int, default 300
+    polish : int, default 1000
         Maximum L-BFGS iterations of the polish (0 disables it).
     n_solutions : int, default 5
         How many best distinct solutions to return in ``solutions``.
@@ -259,6 +275,16 @@ def refine(points: ArrayLike, normals: ArrayLike, degree: int, method: str = "de
     >>> res.distance < 1e-8, res.polynomial.method
     (True, 'de+polish')
     """
+    # One BLAS thread for the whole run: the population objective parallelises over blocks of
+    # points itself, and everything else is many small products, for which BLAS worker
+    # threads only cost synchronisation (badly so when other processes compete for the cores).
+    with single_threaded_blas():
+        return _refine(points, normals, degree, method, population, iterations, seed_fraction, seeds, chi, c1, c2,
+                       F, CR, delta, polish, n_solutions, rng, callback, dtype, search_space)
+
+
+def _refine(points, normals, degree, method, population, iterations, seed_fraction, seeds, chi, c1, c2, F, CR,
+            delta, polish, n_solutions, rng, callback, dtype, search_space) -> RefineResult:
     started = time.perf_counter()
     pts = as_points(points)
     unit_normals = as_normals(normals, pts, required_by="refine")
@@ -302,7 +328,9 @@ def refine(points: ArrayLike, normals: ArrayLike, degree: int, method: str = "de
     nfev = 0
     if coefs:
         seed_a = unit_rows(np.array(coefs))
-        seed_fun = obj64(seed_a)
+        # One vector at a time, exactly as the returned polynomial is measured below: the
+        # comparison "never above the best seed" then holds to the last bit.
+        seed_fun = np.array([obj64(a)[0] for a in seed_a])
         nfev += len(seed_a)
         order = np.argsort(seed_fun, kind="stable")
         seed_a, seed_fun, labels = seed_a[order], seed_fun[order], [labels[i] for i in order]
@@ -313,9 +341,13 @@ def refine(points: ArrayLike, normals: ArrayLike, degree: int, method: str = "de
         raise error("seeds", "at least one seed for method='polish'", "none", "Pass seeds or use 'de+polish'.")
 
     r = obj64.whitening()
+    # Explicit inverse, applied with numpy: the hot loop then uses one BLAS library only (numpy
+    # and SciPy bundle separate OpenBLAS copies whose spinning threads would compete). Its
+    # rounding only reparametrises the search; seeds keep their exact coefficients below.
+    r_inv = scipy.linalg.solve_triangular(r, np.eye(d), check_finite=False)
     if search_space == "whitened":
         def to_a(y):
-            return solve_rows(r, y)
+            return y @ r_inv.T
 
         def to_space(a):
             return a @ r.T
@@ -356,22 +388,34 @@ def refine(points: ArrayLike, normals: ArrayLike, degree: int, method: str = "de
         history = meta.history
         messages.append(f"{metaheuristic}: {meta.message}")
         final = unit_rows(to_a(meta.population))
-        if dtype != np.float64:
-            nfev += len(final)
         candidates.append(final)
 
     pool = np.concatenate(candidates)
-    pool_fun = obj64(pool) if metaheuristic is not None else seed_fun
-    best = int(np.argmin(pool_fun))
+    if metaheuristic is not None:
+        # Re-evaluated in float64 (the population may have been screened in float32), which
+        # also puts the seeds and the final members on exactly the same footing.
+        pool_fun = obj64(pool)
+        nfev += len(final)
+    else:
+        pool_fun = seed_fun
     polish_history = np.empty(0)
     if "polish" in method and polish_iterations > 0:
-        pol = run_polish(obj64.value_and_grad, pool[best], maxiter=polish_iterations, precondition=r,
-                         callback=stage_callback("polish", lambda x: x))
-        nfev += pol.nfev
+        # Polish the best candidate and, when it is another one, the best seed: the local
+        # optimum near the seed is sometimes the better one, and a polish costs little.
+        starts = [int(np.argmin(pool_fun))]
+        if coefs and starts[0] != 0:
+            starts.append(0)
+        polished = []
+        for i in starts:
+            pol = run_polish(obj64.value_and_grad, pool[i], maxiter=polish_iterations, precondition=r,
+                             callback=stage_callback("polish", lambda x: x))
+            nfev += pol.nfev
+            polished.append(pol)
+        pol = min(polished, key=lambda res: res.fun)
         polish_history = pol.history
         messages.append(f"polish: {pol.message}")
-        pool = np.concatenate([pol.x[None, :], pool])
-        pool_fun = np.concatenate([[pol.fun], pool_fun])
+        pool = np.concatenate([np.array([res.x for res in polished]), pool])
+        pool_fun = np.concatenate([[res.fun for res in polished], pool_fun])
 
     # The k best distinct candidates (float64), canonical sign.
     order = np.argsort(pool_fun, kind="stable")
@@ -383,13 +427,23 @@ def refine(points: ArrayLike, normals: ArrayLike, degree: int, method: str = "de
                 break
     template = ImplicitPolynomial(basis.exponents(dim, degree), pool[kept[0]], norm, method=method)
     solutions = []
-    for i in kept:
+    for rank, i in enumerate(kept):
         poly = template.with_coefficients(pool[i]).canonical(pts, unit_normals)
         m = obj64.measures(poly.coefficients)[0]
+        if m.distance > pool_fun[i] + 1e-12 * max(1.0, abs(pool_fun[i])):
+            # canonical() chose the sign by the raw gradient agreement, which in rare cases
+            # disagrees with the mean cosine; keep the orientation that was optimised.
+            poly = template.with_coefficients(pool[i] / np.linalg.norm(pool[i]))
+            m = obj64.measures(poly.coefficients)[0]
+        if rank == 0 and coefs and m.distance > seed_fun[0]:
+            # Only rounding (renormalisation, summation order) can put the winner above the
+            # best seed: then it is the best seed, returned exactly as measured.
+            poly = template.with_coefficients(seed_a[0])
+            m = obj64.measures(seed_a[0])[0]
         solutions.append(poly.with_coefficients(poly.coefficients, measures=m.to_dict()))
     best_poly = solutions[0]
     best_measures = Measures(**{k: v for k, v in best_poly.measures.items()})
-    used_seed = bool(coefs) and np.any(np.all(seed_a == pool[kept[0]], axis=1))
+    used_seed = bool(coefs) and best_measures.distance >= seed_fun[0]
     if used_seed:
         messages.append("no candidate beat the best seed: returning it")
     info = {"population": size, "iterations": iterations, "seed_fraction": seed_fraction, "delta": delta,
@@ -406,8 +460,3 @@ def refine(points: ArrayLike, normals: ArrayLike, degree: int, method: str = "de
         seconds=time.perf_counter() - started, seed_distances=MappingProxyType(seed_distances),
         best_seed=labels[0] if coefs else None, polish_history=polish_history, population_size=size,
         info=MappingProxyType(info))
-
-
-def solve_rows(r: NDArray, y: NDArray) -> NDArray:
-    """Rows a with R a = y for every row y (R upper triangular)."""
-    return scipy.linalg.solve_triangular(r, np.atleast_2d(y).T, check_finite=False).T.reshape(np.shape(y))

@@ -48,12 +48,14 @@ class Samples(NamedTuple):
 
     ``weights`` are the lengths (2D) or areas (3D) each sample stands for, so weighted means
     are means over the shape, not over however it happened to be triangulated.
-    ``labels`` are the component index of each sample (-1 when unknown).
+    ``labels`` are the component index of each sample (-1 when unknown), ``elements``
+    the segment or face it was drawn from.
     """
 
     points: NDArray[np.float64]
     weights: NDArray[np.float64]
     labels: NDArray[np.int64]
+    elements: NDArray[np.int64] | None = None  # index of the segment / face each sample lies on
 
 
 # -- bounds and grids ------------------------------------------------------------------------
@@ -201,7 +203,7 @@ def sample_segments(starts: NDArray, ends: NDArray, spacing: float,
     pts = starts[owner] + t[:, None] * (ends[owner] - starts[owner]) if owner.size else np.empty((0, dim))
     weights = lengths[owner] / pieces[owner]
     lab = np.full(owner.size, -1, dtype=np.int64) if labels is None else np.asarray(labels)[owner]
-    return Samples(pts, weights, lab)
+    return Samples(pts, weights, lab, owner)
 
 
 def _subtriangle_centroids(k: int) -> NDArray[np.float64]:
@@ -226,14 +228,14 @@ def sample_triangles(vertices: NDArray, faces: NDArray, spacing: float,
     v = np.asarray(vertices, dtype=np.float64)
     f = np.asarray(faces, dtype=np.int64)
     if f.size == 0:
-        return Samples(np.empty((0, 3)), np.empty(0), np.empty(0, dtype=np.int64))
+        return Samples(np.empty((0, 3)), np.empty(0), np.empty(0, dtype=np.int64), np.empty(0, dtype=np.int64))
     a, b, c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
     longest = np.maximum.reduce([np.linalg.norm(b - a, axis=1), np.linalg.norm(c - b, axis=1),
                                  np.linalg.norm(a - c, axis=1)])
     areas = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
     ks = _pieces(longest, spacing, max_samples, 2)
     lab = np.full(len(f), -1, dtype=np.int64) if labels is None else np.asarray(labels, dtype=np.int64)
-    pts, wts, labs = [], [], []
+    pts, wts, labs, elems = [], [], [], []
     for k in np.unique(ks):  # few distinct subdivision levels: vectorised within each
         sel = np.flatnonzero(ks == k)
         bary = _subtriangle_centroids(int(k))
@@ -242,7 +244,8 @@ def sample_triangles(vertices: NDArray, faces: NDArray, spacing: float,
         pts.append(p.reshape(-1, 3))
         wts.append(np.repeat(areas[sel] / (k * k), len(bary)))
         labs.append(np.repeat(lab[sel], len(bary)))
-    return Samples(np.concatenate(pts), np.concatenate(wts), np.concatenate(labs))
+        elems.append(np.repeat(sel, len(bary)))
+    return Samples(np.concatenate(pts), np.concatenate(wts), np.concatenate(labs), np.concatenate(elems))
 
 
 # -- the zero set ----------------------------------------------------------------------------
@@ -346,6 +349,15 @@ class ZeroSet:
         return float(0.5 * np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]), axis=1).sum())
 
     # -- sampling -----------------------------------------------------------------------
+    def segments(self) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]]:
+        """2D: every polyline segment as ``(starts, ends, curve_index)``."""
+        if self.dim != 2 or self.is_empty:
+            return np.empty((0, self.dim)), np.empty((0, self.dim)), np.empty(0, dtype=np.int64)
+        starts = np.concatenate([c[:-1] for c in self.curves])
+        ends = np.concatenate([c[1:] for c in self.curves])
+        labels = np.repeat(np.arange(len(self.curves)), [len(c) - 1 for c in self.curves])
+        return starts, ends, labels
+
     def sample(self, spacing: float | None = None, max_samples: int | None = None) -> Samples:
         """Dense samples of the zero set with length/area weights and component labels.
 
@@ -353,11 +365,10 @@ class ZeroSet:
         """
         spacing = self.step / 4 if spacing is None else float(spacing)
         if self.is_empty:
-            return Samples(np.empty((0, self.dim)), np.empty(0), np.empty(0, dtype=np.int64))
+            empty = np.empty(0, dtype=np.int64)
+            return Samples(np.empty((0, self.dim)), np.empty(0), empty, empty)
         if self.dim == 2:
-            starts = np.concatenate([c[:-1] for c in self.curves])
-            ends = np.concatenate([c[1:] for c in self.curves])
-            labels = np.repeat(np.arange(len(self.curves)), [len(c) - 1 for c in self.curves])
+            starts, ends, labels = self.segments()
             return sample_segments(starts, ends, spacing, labels, max_samples)
         return sample_triangles(self.vertices, self.faces, spacing, self.component_labels, max_samples)
 

@@ -8,6 +8,8 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
+
 from ._common import OutputSet, finite_float, load_input, nonnegative_float, positive_int, prepare_output_dir, show_progress
 
 NAME = "fit"
@@ -132,6 +134,7 @@ def run(args: argparse.Namespace) -> int:
                           delta=args.delta, rng=args.seed, progress=progress, **params)
     payload = result.to_dict()
     payload["input"] = {"source": str(args.input), "n_points": int(len(points)), "normals": source}
+    payload["bounds"] = np.column_stack([points.min(axis=0), points.max(axis=0)]).tolist()
     _write_outputs(prefix, payload, result, points, data, args)
     if not args.quiet:
         table = ", ".join(f"{d.degree}: {d.smoothness:.4f}" for d in result.degrees)

@@ -64,14 +64,17 @@ def polish(fun_and_grad: Callable[[NDArray], tuple[float, NDArray]], x0: ArrayLi
         if r.shape != (x_start.size, x_start.size) or not np.isfinite(r).all():
             raise error("precondition", f"a finite ({x_start.size}, {x_start.size}) upper-triangular matrix",
                         f"shape {r.shape}")
+        # One triangular inversion, then only numpy products in the loop: numpy and SciPy link
+        # separate OpenBLAS copies, and alternating between them makes their idle threads spin
+        # against each other on a small machine.
+        r_inv = scipy.linalg.solve_triangular(r, np.eye(x_start.size), check_finite=False)
 
         def to_x(y):
-            return scipy.linalg.solve_triangular(r, y, check_finite=False)
+            return r_inv @ y
 
         def fg(y):
-            value, grad = fun_and_grad(to_x(y))
-            # d/dy f(R⁻¹ y) = R⁻ᵀ ∇f
-            return value, scipy.linalg.solve_triangular(r, grad, trans="T", check_finite=False)
+            value, grad = fun_and_grad(r_inv @ y)
+            return value, r_inv.T @ grad  # d/dy f(R⁻¹ y) = R⁻ᵀ ∇f
 
         y0 = r @ x_start
     else:

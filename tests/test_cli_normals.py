@@ -1,0 +1,97 @@
+"""`ipfit normals` and `ipfit datasets` end to end, including bad input."""
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from ipfit import io
+from ipfit.cli import main
+
+
+def test_estimate_and_compare_on_a_bundled_mesh(tmp_path, capsys):
+    out = tmp_path / "res4.ply"
+    assert main(["normals", "bunny_res4", "-o", str(out), "--estimate"]) == 0
+    text = capsys.readouterr().out
+    assert "453 points (3D)" in text and "estimated normals: k = 12" in text
+    assert "disagree with" in text and "point the other way" in text and "median angle" in text
+    points, normals = io.read_points(out)
+    assert points.shape == normals.shape == (453, 3)
+
+
+def test_copy_the_files_normals(tmp_path, shared_data, capsys):
+    out = tmp_path / "apple.csv"
+    assert main(["normals", str(shared_data / "3d" / "apple.ply"), "-o", str(out)]) == 0
+    assert "normals from the file" in capsys.readouterr().out
+    expected = io.read_points(shared_data / "3d" / "apple.ply")
+    got = io.read_points(out)
+    np.testing.assert_allclose(got.points, expected.points)
+    np.testing.assert_allclose(got.normals, expected.normals)
+
+
+def test_file_without_normals_is_estimated(tmp_path, rng, capsys):
+    from ipfit.datasets.synthetic import sphere
+
+    points, truth, _ = sphere(400, rng=rng)
+    src = io.write_points(tmp_path / "s.xyz", points)
+    out = tmp_path / "s.ply"
+    assert main(["normals", str(src), "-o", str(out), "--k", "10", "--ascii"]) == 0
+    text = capsys.readouterr().out
+    assert "no normals" in text and "the input has none" in text and "k = 10" in text
+    assert out.read_bytes().startswith(b"ply\nformat ascii")
+    assert np.all(np.einsum("ij,ij->i", io.read_points(out).normals, truth) > 0.9)
+
+
+def test_silhouette_image(tmp_path, shared_data, capsys):
+    out = tmp_path / "boot.npz"
+    assert main(["normals", str(shared_data / "2d" / "boot.gif"), "-o", str(out), "--estimate"]) == 0
+    text = capsys.readouterr().out
+    assert "traced boundary" in text and "0 of 1,354 point the other way" in text
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["normals", "{tmp}/missing.ply", "-o", "{tmp}/o.ply"], ["missing.ply", "no such file"]),
+    (["normals", "rabbit", "-o", "{tmp}/o.ply"], ["rabbit", "bundled dataset"]),
+    (["normals", "apple", "-o", "{tmp}/o.vtk"], ["o.vtk", ".ply"]),
+    (["normals", "apple", "-o", "{tmp}/nofolder/o.ply"], ["does not exist"]),
+    (["normals", "{tmp}/bad.csv", "-o", "{tmp}/o.ply"], ["bad.csv", "line 2", "not a number"]),
+    (["normals", "{tmp}/short.xyz", "-o", "{tmp}/o.ply"], ["short.xyz", "at least 3"]),
+    (["normals", "apple", "-o", "{tmp}/o.ply", "--estimate", "--k", "2"], ["k", ">= 3"]),
+])
+def test_bad_input_is_one_line_and_exit_2(tmp_path, capsys, argv, words):
+    (tmp_path / "bad.csv").write_text("x,y\n1,abc\n")
+    (tmp_path / "short.xyz").write_text("1 2 3\n4 5 6\n")
+    argv = [a.replace("{tmp}", str(tmp_path)) for a in argv]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("ipfit normals: error: ")
+    for word in words:
+        assert word in err
+    assert not (tmp_path / "o.ply").exists()
+
+
+def test_bad_option_exits_2(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["normals", "apple"])  # -o is required
+    assert exc.value.code == 2
+
+
+def test_subprocess_has_no_traceback(tmp_path):
+    bad = tmp_path / "cut.ply"
+    bad.write_bytes(b"ply\nformat binary_little_endian 1.0\nelement vertex 100\nproperty float x\n"
+                    b"property float y\nproperty float z\nend_header\n" + b"\0" * 50)
+    result = subprocess.run([sys.executable, "-m", "ipfit.cli", "normals", str(bad), "-o", str(tmp_path / "o.ply")],
+                            capture_output=True, text=True, timeout=120)
+    assert result.returncode == 2
+    assert "Traceback" not in result.stderr
+    assert result.stderr.strip().count("\n") == 0
+    assert "truncated" in result.stderr and str(bad) in result.stderr
+
+
+def test_datasets_command(capsys):
+    assert main(["datasets", "--paths"]) == 0
+    text = capsys.readouterr().out
+    for name in ("bunny", "bunny_res4", "apple", "duck", "boot", "airplane", "butterfly"):
+        assert f"\n{name} " in "\n" + text
+    assert "Stanford 3D Scanning Repository" in text and "CREDITS.md" in text and "file:" in text

@@ -1,0 +1,160 @@
+"""Geometric quality measures on hand-built cases with known answers."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from ipfit import InvalidInputError
+from ipfit.datasets import synthetic
+from ipfit.quality import Quality, looks_like_contour, quality
+from ipfit.zeroset import extract_zero_set
+
+from test_zeroset import product
+
+
+def test_perfect_circle_fit():
+    shape = synthetic.circle(200)
+    q = quality(shape.polynomial, shape.points)
+    assert q.recall == 1.0 and q.precision == 1.0 and q.f_score == 1.0
+    assert q.n_components == 1 and q.n_spurious == 0 and q.closed
+    assert q.reference == "points"
+    assert q.data_to_zero_set < q.grid_step / 4
+    assert math.isclose(q.tau, 0.02 * math.hypot(2, 2), rel_tol=1e-3)
+
+
+def test_perfect_sphere_fit_against_mesh_faces():
+    import trimesh
+
+    mesh = trimesh.creation.icosphere(subdivisions=2, radius=1.0)
+    poly = synthetic.sphere().polynomial
+    q = quality(poly, mesh.vertices, faces=mesh.faces, resolution=64)
+    assert q.reference == "faces"
+    assert q.f_score == 1.0 and q.n_spurious == 0 and q.closed and q.n_components == 1
+    assert q.chamfer < 0.01  # the icosphere's flat faces are within 0.01 of the unit sphere
+    # against the 162 sparse vertices alone, the same perfect fit scores low precision
+    sparse = quality(poly, mesh.vertices, resolution=64)
+    assert sparse.recall == 1.0 and sparse.precision < 0.8
+
+
+def test_ordered_contour_reference():
+    shape = synthetic.circle(24)
+    poly = shape.polynomial
+    q = quality(poly, shape.points, ordered_contour=True)
+    assert q.reference == "contour" and q.f_score == 1.0
+    assert quality(poly, shape.points).precision < 0.9
+
+
+def test_extra_component_in_the_box_is_spurious():
+    shape = synthetic.circle(200)
+    extra = synthetic.circle(radius=0.1, center=(1.3, 1.3)).polynomial  # inside the box's margin
+    poly = product(shape.polynomial, extra)
+    q = quality(poly, shape.points)
+    assert q.n_components == 2 and q.n_spurious == 1
+    assert q.recall == 1.0 and 0.7 < q.precision < 1.0
+    assert q.closed
+
+
+def test_far_away_component_counts_when_the_box_holds_it():
+    shape = synthetic.circle(200)
+    far = synthetic.circle(radius=1.0, center=(6.0, 0.0)).polynomial
+    poly = product(shape.polynomial, far)
+    assert quality(poly, shape.points).n_spurious == 0  # outside the default box
+    q = quality(poly, shape.points, bounds=[[-2, 8], [-2, 2]])
+    assert q.n_components == 2 and q.n_spurious == 1
+    assert q.precision == pytest.approx(0.5, abs=0.02)
+
+
+def test_extra_sphere_is_spurious_in_3d():
+    shape = synthetic.sphere(2000)
+    extra = synthetic.sphere(radius=0.15, center=(1.25, 1.25, 1.25)).polynomial
+    q = quality(product(shape.polynomial, extra), shape.points, resolution=64)
+    assert q.n_components == 2 and q.n_spurious == 1 and q.recall == 1.0
+
+
+def test_zero_set_leaving_the_box_is_not_closed():
+    shape = synthetic.sphere(500)
+    hyperboloid = synthetic.from_terms(3, 2, {(2, 0, 0): 1, (0, 2, 0): 1, (0, 0, 2): -1, (0, 0, 0): -1})
+    q = quality(hyperboloid, shape.points, resolution=48)
+    assert not q.closed and q.n_components == 1
+    plane = synthetic.from_terms(3, 1, {(0, 0, 1): 1.0})
+    assert not quality(plane, shape.points, resolution=32).closed
+
+
+def test_empty_zero_set():
+    shape = synthetic.circle(50)
+    nothing = synthetic.from_terms(2, 2, {(2, 0): 1, (0, 2): 1, (0, 0): 1})
+    q = quality(nothing, shape.points, resolution=64)
+    assert q.recall == 0 and q.precision == 0 and q.f_score == 0 and q.n_components == 0 and not q.closed
+    assert math.isinf(q.chamfer)
+    d = q.to_dict()
+    assert d["chamfer"] is None
+    json.dumps(d)
+
+
+def test_distances_of_a_scaled_circle():
+    shape = synthetic.circle(400)
+    bigger = synthetic.circle(radius=1.1).polynomial
+    q = quality(bigger, shape.points, tau=0.05)
+    assert q.recall == 0.0 and q.precision == 0.0
+    # exact distances to the extracted segments: only the grid's own error remains
+    assert q.data_to_zero_set == pytest.approx(0.1, abs=q.grid_step / 4)
+    assert q.zero_set_to_data == pytest.approx(0.1, abs=0.002)  # the data's points are 0.016 apart
+    assert q.chamfer == pytest.approx(0.1, abs=0.002)
+    assert quality(bigger, shape.points, tau=0.15).f_score == 1.0
+
+
+def test_accepts_a_zero_set_and_serialises():
+    shape = synthetic.torus(2000)
+    zs = extract_zero_set(shape.polynomial, points=shape.points, resolution=48)
+    q = quality(zs, shape.points)
+    assert isinstance(q, Quality)
+    assert q.recall == 1.0 and q.n_spurious == 0 and q.closed
+    d = q.to_dict()
+    assert set(d) >= {"recall", "precision", "f_score", "chamfer", "n_components", "n_spurious", "closed", "tau"}
+    assert json.loads(json.dumps(d)) == d
+    assert "f_score" in str(q)
+
+
+def test_looks_like_contour(rng):
+    shape = synthetic.circle(100)
+    assert looks_like_contour(shape.points)
+    assert not looks_like_contour(rng.permutation(shape.points))
+    assert not looks_like_contour(synthetic.sphere(50).points)
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    ({"tau": -1.0}, "tau"),
+    ({"tau_fraction": 0.0}, "tau_fraction"),
+    ({"faces": [[0, 1, 2]]}, "faces"),
+    ({"max_samples": 10}, "max_samples"),
+])
+def test_bad_arguments_2d(kwargs, match):
+    shape = synthetic.circle(20)
+    with pytest.raises(InvalidInputError, match=match):
+        quality(shape.polynomial, shape.points, **kwargs)
+
+
+def test_bad_faces_and_dimensions():
+    shape = synthetic.sphere(20)
+    with pytest.raises(InvalidInputError, match="faces"):
+        quality(shape.polynomial, shape.points, faces=[[0, 1, 99]])
+    with pytest.raises(InvalidInputError, match="faces"):
+        quality(shape.polynomial, shape.points, faces=np.zeros((3, 4), dtype=int))
+    with pytest.raises(InvalidInputError, match="points"):
+        quality(shape.polynomial, synthetic.circle(20).points)
+    with pytest.raises(InvalidInputError, match="model"):
+        quality("sphere", shape.points)
+
+
+def test_far_distances_enter_the_chamfer_mean():
+    shape = synthetic.circle(3000, radius=1.0)
+    far = synthetic.circle(radius=0.2).polynomial
+    q = quality(far, shape.points, tau=0.01, bounds=[[-1.5, 1.5], [-1.5, 1.5]])
+    # every distance is 0.8, far outside the exact band, on both sides
+    assert q.recall == 0 and q.precision == 0 and q.n_spurious == 1
+    assert q.data_to_zero_set == pytest.approx(0.8, abs=0.005)
+    assert q.zero_set_to_data == pytest.approx(0.8, abs=0.005)
