@@ -358,8 +358,6 @@ def _bad_files(tmp_path, shared_data):
     add("binary text", "bin.csv", b"\x89\xff\xfe\x00abc", "not a text file")
     raw = (shared_data / "3d" / "bun_zipper_res4.ply").read_bytes()
     add("truncated ascii ply", "cut.ply", raw[: len(raw) // 2], "truncated")
-    binary = pyio.BytesIO()
-    PlyData.read(str(shared_data / "3d" / "apple.ply")).write(binary) if False else None
     ply = PlyData.read(str(shared_data / "3d" / "apple.ply"))
     ply.text = False
     ply.write(str(tmp_path / "full_bin.ply"))

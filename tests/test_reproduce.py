@@ -158,3 +158,18 @@ def test_only_and_errors(data_source, tmp_path, capsys):
     assert exc.value.code == 2
     with pytest.raises(SystemExit):
         main(["reproduce", "--out", str(out), "--quick", "--full"])
+
+
+def test_adaptive_runs_are_the_library_adaptive_runs(quick_run):
+    """The recorded paths equal fit_adaptive(method='de') with the same seed: the runner only keeps records."""
+    from ipfit.adaptive import fit_adaptive
+
+    results = rep.load_results(quick_run)
+    cfg = rep.CONFIGS["quick"]
+    seed = results["run"]["seed"]
+    data = rep.prepare_data("airplane", cfg, seed)
+    direct = fit_adaptive(data.points, data.normals, method="de", epsilon=rep.PATH_EPSILON, delta=cfg.delta,
+                          max_degree=4, rng=rep._rng(seed, "adaptive", "airplane", "de"), **cfg.refine_params())
+    saved = results["adaptive"]["datasets"]["airplane"]["runs"]["de"]["path"]
+    assert [d.smoothness for d in direct.degrees] == [p["smoothness"] for p in saved[:2]]
+    assert [d.distance for d in direct.degrees] == [p["distance"] for p in saved[:2]]

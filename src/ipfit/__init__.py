@@ -12,7 +12,10 @@ from .exceptions import ConditioningWarning, InvalidInputError, IpfitError, Ipfi
 from .linear import LINEAR_METHODS, fit_3l, fit_gradient_one, fit_linear, fit_lstsq, fit_ridge, fit_taubin
 from .adaptive import AdaptiveResult, DegreeResult, fit_adaptive, select_degree
 from .export import save_zero_set
+from .datasets import dataset_names, list_datasets, load_dataset
 from .farfield import FarFieldTerm, far_field_samples
+from .io import read_mesh, read_points, write_points
+from .normals import contour_normals, estimate_normals, normal_agreement, orient_normals
 from .objective import Measures, Objective, measures
 from .plotting import plot_curve, plot_result, plot_smoothness, plot_surface
 from .polynomial import ImplicitPolynomial, Normalization
@@ -38,6 +41,16 @@ __all__ = [
     "refine",
     "RefineResult",
     "fit_adaptive",
+    "read_points",
+    "read_mesh",
+    "write_points",
+    "estimate_normals",
+    "orient_normals",
+    "normal_agreement",
+    "contour_normals",
+    "load_dataset",
+    "list_datasets",
+    "dataset_names",
     "AdaptiveResult",
     "DegreeResult",
     "select_degree",

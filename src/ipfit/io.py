@@ -377,8 +377,9 @@ def _finish(path: Path, data: _Raw, merge: bool) -> Mesh:
     if data.faces is not None and len(data.faces):
         faces = np.asarray(data.faces, dtype=np.int64)
         if faces.min() < 0 or faces.max() >= len(pts):
-            raise ReadError(f"{path}: a face refers to vertex {int(faces.max() if faces.max() >= len(pts) else faces.min())}"
-                            f" but there are {len(pts)} vertices. The file is corrupted.")
+            wrong = int(faces.max() if faces.max() >= len(pts) else faces.min())
+            raise ReadError(f"{path}: a face refers to vertex {wrong} but there are {len(pts)} vertices. "
+                            "The file is corrupted.")
     if merge:
         merged = merge_duplicates(pts, normals)
         pts, normals = merged.points, merged.normals
@@ -480,7 +481,7 @@ def _triangulate(polygons: list) -> NDArray[np.int64] | None:
     if not polygons:
         return None
     sizes = np.fromiter(map(len, polygons), dtype=np.intp, count=len(polygons))
-    flat = np.concatenate([np.asarray(p, dtype=np.int64).ravel() for p in polygons]) if sizes.sum() else np.empty(0, np.int64)
+    flat = np.concatenate(polygons).astype(np.int64) if sizes.sum() else np.empty(0, np.int64)
     starts = np.concatenate([[0], np.cumsum(sizes)[:-1]])
     out = []
     for size in np.unique(sizes):

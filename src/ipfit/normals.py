@@ -166,11 +166,15 @@ def _orient(points: NDArray, normals: NDArray, idx: NDArray[np.intp], flatness: 
     mutual = (idx[cols] == rows[:, None]).any(axis=1)
     keep = (rows != cols) & ((rows < cols) | ~mutual)
     lo, hi = rows[keep], cols[keep]
-    agree = _consistency(points, normals, lo, hi)
+    bridge_lo, bridge_hi = _bridges(points, lo, hi, idx.shape[1])
+    lo, hi = np.concatenate([lo, bridge_lo]), np.concatenate([hi, bridge_hi])
+    agree, off_plane = _consistency(points, normals, lo, hi, with_off_plane=True)
     # Links through curved or rough neighbourhoods (creases, tips, noise) are less trustworthy
-    # than their normals' agreement says: the flatness terms make the tree avoid them.
+    # than their normals' agreement says: the flatness terms make the tree avoid them. So are
+    # links leaving both tangent planes: between close points, a step along the normal is more
+    # often noise than the crossing of a thin part, and it reverses the mirrored comparison.
     doubt = 1.0 - flatness
-    weight = np.maximum(1.0 - np.abs(agree), 0.0) + doubt[lo] + doubt[hi] + _WEIGHT_FLOOR
+    weight = np.maximum(1.0 - np.abs(agree), 0.0) + doubt[lo] + doubt[hi] + off_plane + _WEIGHT_FLOOR
     ncomp, labels = csgraph.connected_components(sparse.csr_matrix((weight, (lo, hi)), shape=(n, n)),
                                                  directed=False)
 
@@ -234,18 +238,67 @@ def _orient(points: NDArray, normals: NDArray, idx: NDArray[np.intp], flatness: 
     return normals * sign[:, None]
 
 
-def _consistency(points: NDArray, normals: NDArray, i: NDArray, j: NDArray) -> NDArray[np.float64]:
+def _bridges(points: NDArray, lo: NDArray, hi: NDArray, k: int) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    """Edges joining the pieces of a k-nearest-neighbour graph that are close to each other.
+
+    Sparse or uneven sampling splits a curve or surface into fragments whose own extreme
+    points say nothing about outward (the farthest point of an arc fragment is at its end).
+    As in Hoppe's Euclidean-MST edges, each fragment is joined by its shortest link to another
+    one (Borůvka rounds), searching up to 8k neighbours: far-apart shapes stay separate.
+    """
+    n = len(points)
+    graph = sparse.csr_matrix((np.ones(len(lo)), (lo, hi)), shape=(n, n))
+    ncomp, labels = csgraph.connected_components(graph, directed=False)
+    found_lo, found_hi = [], []
+    tree = None
+    reach = 2 * k
+    while ncomp > 1 and reach <= 8 * k:
+        if tree is None:
+            tree = cKDTree(points)
+        largest = np.argmax(np.bincount(labels))
+        query = np.flatnonzero(labels != largest)  # links are symmetric: the largest piece is found by the others
+        dist, near = tree.query(points[query], k=min(reach, n))
+        dist = np.where(labels[near] != labels[query][:, None], dist, np.inf)
+        best = np.argmin(dist, axis=1)
+        rows = np.arange(len(query))
+        dist, near = dist[rows, best], near[rows, best]
+        ok = np.isfinite(dist)
+        if not ok.any():
+            reach *= 2
+            continue
+        start, end, length, comp = query[ok], near[ok], dist[ok], labels[query[ok]]
+        shortest = np.lexsort((length, comp))
+        first = np.ones(len(shortest), dtype=bool)
+        first[1:] = comp[shortest][1:] != comp[shortest][:-1]
+        pick = shortest[first]  # the shortest link of each fragment that found one
+        found_lo.append(start[pick])
+        found_hi.append(end[pick])
+        joined = sparse.csr_matrix((np.ones(len(pick)), (labels[start[pick]], labels[end[pick]])), shape=(ncomp, ncomp))
+        ncomp, merged = csgraph.connected_components(joined, directed=False)
+        labels = merged[labels]
+    if not found_lo:
+        return np.empty(0, np.intp), np.empty(0, np.intp)
+    a, b = np.concatenate(found_lo), np.concatenate(found_hi)
+    pairs = np.unique(np.column_stack([np.minimum(a, b), np.maximum(a, b)]), axis=0)  # A→B and B→A: once
+    return pairs[:, 0].astype(np.intp), pairs[:, 1].astype(np.intp)
+
+
+def _consistency(points: NDArray, normals: NDArray, i: NDArray, j: NDArray, *, with_off_plane: bool = False):
     """n_i · R n_j, R the mirror across the bisector plane of p_i and p_j (König & Gumhold 2009).
 
     Points on a common circle or sphere with outward normals give exactly +1, whatever the
     curvature. The outward normals across a sharp tip or on the two sides of a thin part are
     mirror images, not parallel, so Hoppe's n_i · n_j alone would orient them wrongly.
+    ``with_off_plane`` also returns |n_i·e| |n_j·e| (e: unit p_j − p_i), near 1 when the link
+    runs along both normals.
     """
     e = points[j] - points[i]
     length = np.linalg.norm(e, axis=1)
     e /= np.where(length > 0, length, 1.0)[:, None]
     ni, nj = normals[i], normals[j]
-    return np.einsum("ij,ij->i", ni, nj) - 2.0 * np.einsum("ij,ij->i", ni, e) * np.einsum("ij,ij->i", nj, e)
+    ai, aj = np.einsum("ij,ij->i", ni, e), np.einsum("ij,ij->i", nj, e)
+    c = np.einsum("ij,ij->i", ni, nj) - 2.0 * ai * aj
+    return (c, np.abs(ai * aj)) if with_off_plane else c
 
 
 def _anchors(points: NDArray, labels: NDArray, ncomp: int) -> tuple[NDArray[np.intp], NDArray[np.float64]]:

@@ -21,7 +21,8 @@ def run(args: argparse.Namespace) -> int:
     for info in infos:
         print(f"{info.name:<{width}}  {info.dim}D  {info.description}")
         indent = " " * (width + 6)
-        print(textwrap.fill(f"credit: {info.credit}", width=100, initial_indent=indent, subsequent_indent=indent + "  "))
+        print(textwrap.fill(f"credit: {info.credit}", width=100, initial_indent=indent,
+                            subsequent_indent=indent + "  "))
         if args.paths:
             print(f"{indent}file: {bundled.dataset_path(info.name)}")
     print(f"\nFull credits: {bundled.DATA_DIR / 'CREDITS.md'}")

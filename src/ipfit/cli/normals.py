@@ -70,7 +70,8 @@ def run(args: argparse.Namespace) -> int:
         raise InvalidInputError(f"{out}: cannot write '{out.suffix or out.name}' files. "
                                 f"Use one of: {', '.join(io.WRITE_FORMATS)}.")
     if str(out.parent) and not out.parent.is_dir():
-        raise InvalidInputError(f"{out}: the folder {out.parent} does not exist. Create it first or choose another path.")
+        raise InvalidInputError(f"{out}: the folder {out.parent} does not exist. "
+                                "Create it first or choose another path.")
     points, reference, source, label = _load(args.input)
     n, dim = points.shape
     print(f"{label}: {n:,} points ({dim}D), " + (f"normals from {source}" if reference is not None else "no normals"))

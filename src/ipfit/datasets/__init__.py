@@ -1,5 +1,9 @@
-"""Datasets: analytic shapes (``ipfit.datasets.synthetic``) and the bundled real data."""
+"""Datasets: analytic shapes (:mod:`ipfit.datasets.synthetic`) and the bundled real data.
+
+The bundled files and their credits are listed by :func:`list_datasets` (``ipfit datasets``).
+"""
 
 from . import synthetic
+from .bundled import dataset_faces, dataset_names, dataset_path, list_datasets, load_dataset
 
-__all__ = ["synthetic"]
+__all__ = ["synthetic", "list_datasets", "dataset_names", "dataset_path", "load_dataset", "dataset_faces"]
