@@ -6,6 +6,7 @@ coefficients, population P = 4d):
 * ``objective``: one population evaluation, ``Objective(...)(A)`` (float64, then float32);
 * ``bare product``: the single product [M; M_x; M_y; M_z] (4N × d) @ Aᵀ (d × P) that a plain
   implementation would start with (same precision), and ``ratio`` = objective / bare product;
+* ``bare, 1 thread``: the same product with BLAS limited to one thread (the one-core bound);
 * ``serial``: the objective with ``threads=1`` (one block after the other, BLAS threads);
 * ``DE`` / ``PSO`` loop overhead: time per generation outside the objective call, as used by
   :func:`ipfit.refine` (whitened coordinates, unit-sphere projection), and its share of a
@@ -93,7 +94,7 @@ def main() -> None:
 
     from ipfit import basis
     from ipfit.datasets import synthetic
-    from ipfit.objective import Objective, _controller, default_threads
+    from ipfit.objective import Objective, _controller, default_threads, single_threaded_blas
     from ipfit.optimize import DifferentialEvolution, ParticleSwarm, unit_rows
     from ipfit.polynomial import Normalization
 
@@ -103,9 +104,9 @@ def main() -> None:
           f"{platform.processor() or platform.machine()}, {os.cpu_count()} CPUs, "
           f"worker threads {default_threads()}, threadpoolctl {'yes' if _controller() is not None else 'no'}")
     print()
-    print("| degree | d | P | precision | objective ms | serial ms | bare product ms | ratio | "
+    print("| degree | d | P | precision | objective ms | serial ms | bare product ms | bare, 1 thread ms | ratio | "
           "DE ms/gen | DE overhead | PSO ms/gen | PSO overhead | scipy DE ms/gen | scipy overhead |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for degree in args.degrees:
         d = basis.n_coefficients(3, degree)
         size = 4 * d
@@ -121,8 +122,11 @@ def main() -> None:
             t_obj, t_obj_min = timed(args.repeat, lambda: obj(pop))
             t_ser, _ = timed(args.repeat, lambda: serial(pop))
             t_bare, t_bare_min = timed(args.repeat, lambda: stacked @ pop_t)
+            with single_threaded_blas():
+                t_one, _ = timed(args.repeat, lambda: stacked @ pop_t)
             row = [str(degree), str(d), str(size), np.dtype(dtype).name, f"{1e3 * t_obj:.2f} (min {1e3 * t_obj_min:.2f})",
-                   f"{1e3 * t_ser:.2f}", f"{1e3 * t_bare:.2f} (min {1e3 * t_bare_min:.2f})", f"{t_obj / t_bare:.2f}"]
+                   f"{1e3 * t_ser:.2f}", f"{1e3 * t_bare:.2f} (min {1e3 * t_bare_min:.2f})", f"{1e3 * t_one:.2f}",
+                   f"{t_obj / t_bare:.2f}"]
             if dtype == np.float64:
                 r_inv = np.linalg.inv(obj.whitening())
                 start = unit_rows(pop)

@@ -46,7 +46,7 @@ def test_result_keeps_the_whole_path_and_obeys_its_own_rule(rng):
     pts = np.column_stack([r * np.cos(t), r * np.sin(t)])
     tang = np.gradient(pts, axis=0)
     nrm = np.column_stack([tang[:, 1], -tang[:, 0]])
-    result = fit_adaptive(pts, nrm, method="3l", max_degree=10)
+    result = fit_adaptive(pts, nrm, method="3l", max_degree=10, rule="paper")
     assert result.selected_degree >= 4
     data = result.to_dict()
     smooth = [d["smoothness"] for d in data["degrees"]]
@@ -57,6 +57,35 @@ def test_result_keeps_the_whole_path_and_obeys_its_own_rule(rng):
         assert {"degree", "dissimilarity", "smoothness", "distance", "seconds", "coefficients"} <= set(entry)
     taken = result.at_degree(degrees[-1])
     assert taken.polynomial.degree == degrees[-1]
+
+
+def test_geometric_rule_never_selects_an_unclean_degree_when_a_clean_one_exists(rng):
+    t = np.linspace(0, 2 * np.pi, 400, endpoint=False)
+    r = 1 + 0.3 * np.cos(3 * t)
+    pts = np.column_stack([r * np.cos(t), r * np.sin(t)])
+    tang = np.roll(pts, -1, axis=0) - np.roll(pts, 1, axis=0)
+    nrm = np.column_stack([tang[:, 1], -tang[:, 0]])
+    paper = fit_adaptive(pts, nrm, method="3l", max_degree=10, rule="paper")
+    geometric = fit_adaptive(pts, nrm, method="3l", max_degree=10, rule="geometric")
+    quality = {d.degree: d.details["quality"] for d in geometric.degrees}
+    clean = {g for g, q in quality.items() if q["n_spurious"] == 0 and q["closed"]}
+    assert clean, "some degree of 3L on this blob is clean"
+    assert geometric.selected_degree in clean
+    chosen = quality[geometric.selected_degree]["f_score"]
+    assert chosen == max(quality[g]["f_score"] for g in clean)
+    if paper.selected_degree in clean:
+        assert geometric.selected_degree == paper.selected_degree
+
+
+def test_geometric_selection_on_hand_made_paths():
+    from ipfit.adaptive import select_degree_geometric
+
+    # the paper picks 4 (gain 0.005 at 6), but 4 has a spurious sheet: the best clean one wins
+    assert select_degree_geometric([2, 4, 6], [0.8, 0.9, 0.905], [True, False, True], [0.6, 0.9, 0.8]) == (2, "geometric")
+    # the paper's choice is clean: unchanged
+    assert select_degree_geometric([2, 4, 6], [0.8, 0.9, 0.905], [True, True, True], [0.6, 0.9, 0.95]) == (1, "criterion")
+    # nothing clean: the paper's rule
+    assert select_degree_geometric([2, 4], [0.8, 0.9], [False, False], [0.6, 0.9]) == (1, "max_degree")
 
 
 def test_max_degree_is_checked_against_the_number_of_points():

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ipfit.adaptive import select_degree
+from ipfit.adaptive import select_degree, select_degree_geometric
 from ipfit.cli import main
 
 
@@ -26,11 +26,23 @@ def test_fit_bundled_2d_dataset_in_process(tmp_path, capsys):
     for key in ("format", "version", "dim", "degree", "exponents", "coefficients", "normalization", "method",
                 "measures", "selected_degree", "degrees"):
         assert key in data
+    assert_obeys_its_rule(data)
+    assert set(data["measures"]) == {"dissimilarity", "smoothness", "distance", "delta"}
+
+
+def assert_obeys_its_rule(data):
+    """Every written JSON's selected_degree follows its own rule applied to its own degrees."""
     degrees = [d["degree"] for d in data["degrees"]]
     smooth = [d["smoothness"] for d in data["degrees"]]
-    index, _ = select_degree(degrees, smooth, data["adaptive"]["epsilon"])
+    epsilon = data["adaptive"]["epsilon"]
+    complete = data["adaptive"]["reason"] != "interrupted"
+    if data["adaptive"]["rule"] == "paper":
+        index, _ = select_degree(degrees, smooth, epsilon, complete)
+    else:
+        quality = [d["quality"] for d in data["degrees"]]
+        clean = [q["n_spurious"] == 0 and q["closed"] for q in quality]
+        index, _ = select_degree_geometric(degrees, smooth, clean, [q["f_score"] for q in quality], epsilon, complete)
     assert data["selected_degree"] == degrees[index] == data["degree"]
-    assert set(data["measures"]) == {"dissimilarity", "smoothness", "distance", "delta"}
 
 
 def test_fit_3d_file_with_refinement_writes_a_mesh(tmp_path, shared_data):
@@ -41,6 +53,7 @@ def test_fit_3d_file_with_refinement_writes_a_mesh(tmp_path, shared_data):
     assert _outputs(tmp_path) == ["bunny.json", "bunny.ply", "bunny.png"]
     data = json.loads((tmp_path / "bunny.json").read_text())
     assert data["dim"] == 3 and data["selected_degree"] in (2, 4)
+    assert_obeys_its_rule(data)
     assert all(len(d["coefficients"]) in (10, 35) for d in data["degrees"])
 
 
@@ -50,6 +63,16 @@ def test_fixed_degree(tmp_path):
     assert code == 0
     data = json.loads((tmp_path / "b.json").read_text())
     assert data["selected_degree"] == 4 and [d["degree"] for d in data["degrees"]] == [4]
+
+
+def test_paper_flag_runs_the_papers_exact_pipeline(tmp_path):
+    code = main(["fit", "airplane", "-o", str(tmp_path / "p"), "--paper", "--iterations", "10", "--max-degree", "6",
+                 "--quiet", "--no-picture", "--no-zero-set"])
+    assert code == 0
+    data = json.loads((tmp_path / "p.json").read_text())
+    assert data["adaptive"]["rule"] == "paper" and data["adaptive"]["far_weight"] == 0.0
+    assert data["method"] == "de"
+    assert_obeys_its_rule(data)
 
 
 @pytest.mark.parametrize("argv,message", [

@@ -6,22 +6,23 @@ from scipy.spatial import cKDTree
 
 from ipfit.datasets import bundled, synthetic
 from ipfit.exceptions import InvalidInputError
+from ipfit.io import _complete, vertex_normals_from_faces
 from ipfit.normals import DEFAULT_K, contour_normals, estimate_normals, normal_agreement, orient_normals
 
 
-def resolvable(points, reference, estimated, k):
-    """Points whose orientation can be judged at all from the points alone.
+def two_sheets(points, reference, k):
+    """Points where two sheets of the surface are closer than the sampling (the duck's mouth slit).
 
-    Excluded: (a) the estimated line is more than 45° off, so "which way" is meaningless
-    (the apple's stem: 24-point rings 7 mm apart, far below what k neighbours can resolve;
-    the airplane's one-point tips); (b) over a quarter of the point's k nearest neighbours have
-    reference normals pointing the other way: two sheets closer than the sampling (the duck's
-    mouth slit), where no point-based method can tell the sides apart.
+    Over a quarter of the point's k nearest neighbours have reference normals pointing the other
+    way: the neighbourhood mixes both sides of the gap, and the points alone cannot tell them apart.
     """
-    agreement = normal_agreement(estimated, reference)
     _, idx = cKDTree(points).query(points, k)
-    opposite = (np.einsum("ij,ikj->ik", reference, reference[idx[:, 1:]]) < 0).mean(axis=1) > 0.25
-    return (agreement.angles < 45) & ~opposite
+    return (np.einsum("ij,ikj->ik", reference, reference[idx[:, 1:]]) < 0).mean(axis=1) > 0.25
+
+
+def face_normals(name):
+    points, _ = bundled.load_dataset(name)
+    return points, _complete(points, vertex_normals_from_faces(points, bundled.dataset_faces(name)))
 
 
 # -- synthetic shapes ------------------------------------------------------------------------------
@@ -142,22 +143,48 @@ def test_full_bunny_against_face_normals():
     assert agreement.flipped_fraction < 0.01
 
 
-@pytest.mark.parametrize("name, strict_bound", [("apple", 0.07), ("duck", 0.025), ("bunny_res2", 0.01)])
-def test_meshes_against_their_reference_normals(name, strict_bound):
-    """Median below 10° and under 1% flipped among the points whose orientation is resolvable.
+def test_bunny_res2_against_face_normals():
+    points, reference = face_normals("bunny_res2")
+    agreement = normal_agreement(estimate_normals(points), reference)
+    assert agreement.median_angle < 10
+    assert agreement.flipped_fraction < 0.01
 
-    Over all points the apple has 5.7% flipped (its stem: 74 points whose lines are ~80° off, so
-    their signs are coin flips) and the duck 1.5% (its mouth slit);
-    the bounds pin those figures so that a regression shows.
+
+@pytest.mark.parametrize("which", ["faces", "file"])
+def test_apple_against_its_reference_normals(which):
+    """The stem, three rings of 24 points 7 mm apart, needs the refit across sampled curves.
+
+    Each ring's 12 nearest points lie on the ring, whose plane's normal is ~80° off the stem's;
+    and the rings' k-nearest edges never leave the ring, so without the links across the curve
+    the lowest ring, standing in the dimple, is oriented from the dimple's wall and comes out
+    flipped (5.7% of the apple flipped before both fixes).
     """
-    points, reference = bundled.load_dataset(name)
+    if which == "faces":
+        points, reference = face_normals("apple")
+    else:
+        points, reference = bundled.load_dataset("apple")
+    agreement = normal_agreement(estimate_normals(points), reference)
+    assert agreement.median_angle < 10
+    assert agreement.flipped_fraction < 0.01
+    stem = (np.hypot(points[:, 0], points[:, 2]) < 0.004) & (points[:, 1] > 0.064)
+    assert np.median(agreement.angles[stem]) < 30
+
+
+def test_duck_against_face_normals():
+    """Median below 10°, 1.5% flipped (84 of 5,482): the bar (< 1%) is not met.
+
+    All the flipped points are in the mouth slit, where the two lips' surfaces are about 0.3 mm
+    apart, no more than the spacing of the points: the neighbourhoods mix both lips (see
+    two_sheets). Elsewhere under 1% are flipped. The bound pins the figure.
+    """
+    points, reference = face_normals("duck")
     estimated = estimate_normals(points)
     agreement = normal_agreement(estimated, reference)
     assert agreement.median_angle < 10
-    assert agreement.flipped_fraction < strict_bound
-    mask = resolvable(points, reference, estimated, DEFAULT_K[3])
-    assert mask.mean() > 0.85
-    assert agreement.flipped[mask].mean() < 0.01
+    assert agreement.flipped_fraction < 0.016
+    mixed = two_sheets(points, reference, DEFAULT_K[3])
+    assert mixed.mean() < 0.05
+    assert agreement.flipped[~mixed].mean() < 0.01
 
 
 @pytest.mark.parametrize("shuffled", [False, True], ids=["ordered", "shuffled"])
@@ -167,10 +194,64 @@ def test_contours_against_their_ordered_normals(name, shuffled, rng):
     if shuffled:
         perm = rng.permutation(len(points))
         points, reference = points[perm], reference[perm]
-    estimated = estimate_normals(points)
-    agreement = normal_agreement(estimated, reference)
+    agreement = normal_agreement(estimate_normals(points), reference)
     assert agreement.median_angle < 10
-    # the airplane's 2 flipped points of 200 are one-sample tips whose line is 75° off
-    assert agreement.flipped_fraction <= (0.01 if name == "airplane" else 0.001)
-    mask = resolvable(points, reference, estimated, DEFAULT_K[2])
-    assert agreement.flipped[mask].mean() < 0.01
+    assert agreement.flipped_fraction < 0.01
+
+
+# -- sampling that defeats the k nearest neighbours -----------------------------------------------
+
+def lathe_sphere(rings, per_ring):
+    """Unit sphere sampled on latitude rings much farther apart than the points on each ring."""
+    phi = np.linspace(0, np.pi, rings + 2)[1:-1]
+    theta = np.linspace(0, 2 * np.pi, per_ring, endpoint=False)
+    phi, theta = (a.ravel() for a in np.meshgrid(phi, theta, indexing="ij"))
+    points = np.column_stack([np.sin(phi) * np.cos(theta), np.sin(phi) * np.sin(theta), np.cos(phi)])
+    return np.vstack([points, [[0, 0, 1], [0, 0, -1]]])
+
+
+@pytest.mark.parametrize("rings, per_ring", [(8, 90), (16, 120)])
+def test_surface_sampled_on_distant_rings(rings, per_ring):
+    # the 12 nearest points all lie on one ring: plain PCA tilts toward the ring's axis
+    points = lathe_sphere(rings, per_ring)
+    agreement = normal_agreement(estimate_normals(points), points)
+    assert agreement.median_angle < 2
+    assert agreement.flipped_fraction == 0
+
+
+def test_thin_tube_sampled_on_distant_rings():
+    # a torus (radii 3 and 0.5) as 24 rings of 60 points: rings 0.65-0.92 apart, points 0.05
+    u, v = (a.ravel() for a in np.meshgrid(np.linspace(0, 2 * np.pi, 24, endpoint=False),
+                                           np.linspace(0, 2 * np.pi, 60, endpoint=False), indexing="ij"))
+    radial = np.column_stack([np.cos(u), np.sin(u), np.zeros_like(u)])
+    truth = np.cos(v)[:, None] * radial + np.sin(v)[:, None] * np.array([0.0, 0.0, 1.0])
+    agreement = normal_agreement(estimate_normals(3.0 * radial + 0.5 * truth), truth)
+    assert agreement.median_angle < 2  # the plain fit gives the ring planes' normals: 90°
+    assert agreement.flipped_fraction == 0
+
+
+def star(arms, per_edge, inner=0.45):
+    angle = np.arange(2 * arms) * np.pi / arms
+    radius = np.where(np.arange(2 * arms) % 2 == 0, 1.0, inner)
+    v = np.column_stack([radius * np.cos(angle), radius * np.sin(angle)])
+    steps = np.arange(per_edge) / per_edge
+    return np.vstack([v[i] + (v[(i + 1) % len(v)] - v[i]) * s for i in range(len(v)) for s in steps])
+
+
+@pytest.mark.parametrize("arms, per_edge", [(5, 8), (4, 10)])
+def test_coarse_contour_with_sharp_tips(arms, per_edge, rng):
+    # near a tip the nearest points include the other edge; the neighbours along the curve do not
+    points = star(arms, per_edge)
+    reference = contour_normals(points, span=1)
+    perm = rng.permutation(len(points))
+    agreement = normal_agreement(estimate_normals(points[perm]), reference[perm])
+    assert agreement.median_angle < 1
+    assert agreement.flipped_fraction == 0
+
+
+@pytest.mark.parametrize("make", [synthetic.sphere, synthetic.torus], ids=["sphere", "torus"])
+def test_noisy_shapes_with_default_k(make, rng):
+    points, truth, _ = make(3000, rng=rng)
+    agreement = normal_agreement(estimate_normals(points + rng.normal(0, 0.01, points.shape)), truth)
+    assert agreement.flipped_fraction == 0
+    assert agreement.median_angle < 6

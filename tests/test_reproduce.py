@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -173,3 +174,17 @@ def test_adaptive_runs_are_the_library_adaptive_runs(quick_run):
     saved = results["adaptive"]["datasets"]["airplane"]["runs"]["de"]["path"]
     assert [d.smoothness for d in direct.degrees] == [p["smoothness"] for p in saved[:2]]
     assert [d.distance for d in direct.degrees] == [p["distance"] for p in saved[:2]]
+
+
+def test_committed_report_is_the_rendering_of_its_results():
+    """docs/reproduction: not edited by hand (the page is its results.json rendered) and complete."""
+    folder = Path(__file__).resolve().parents[1] / "docs" / "reproduction"
+    if not (folder / "results.json").is_file():
+        pytest.skip("no committed report")
+    results = rep.load_results(folder)
+    text = (folder / "README.md").read_text(encoding="utf-8")
+    assert text == rep.render_report(results)
+    assert rep.summarize(results) == results["summary"]
+    assert results["config"]["name"] == rep.DEFAULT_CONFIG and results["run"]["experiments"] == list(rep.EXPERIMENTS)
+    for name in re.findall(r"!\[[^\]]*\]\(([^)]+)\)", text):
+        assert (folder / name).is_file(), name

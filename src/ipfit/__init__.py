@@ -7,7 +7,7 @@ adaptive degree selection.
 
 from __future__ import annotations
 
-from . import basis
+from . import basis, optimize
 from .exceptions import ConditioningWarning, InvalidInputError, IpfitError, IpfitWarning, ReadError
 from .linear import LINEAR_METHODS, fit_3l, fit_gradient_one, fit_linear, fit_lstsq, fit_ridge, fit_taubin
 from .adaptive import AdaptiveResult, DegreeResult, fit_adaptive, select_degree
@@ -20,7 +20,7 @@ from .objective import Measures, Objective, measures
 from .plotting import plot_curve, plot_result, plot_smoothness, plot_surface
 from .polynomial import ImplicitPolynomial, Normalization
 from .quality import Quality, quality
-from .refine import RefineResult, refine
+from .refine import REFINE_METHODS, RefineResult, refine
 from .zeroset import ZeroSet, extract_zero_set, grid_values
 
 __version__ = "0.1.0"
@@ -40,6 +40,8 @@ __all__ = [
     "Objective",
     "refine",
     "RefineResult",
+    "REFINE_METHODS",
+    "optimize",
     "fit_adaptive",
     "read_points",
     "read_mesh",

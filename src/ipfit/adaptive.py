@@ -130,6 +130,7 @@ class AdaptiveResult:
     method: str
     seconds: float
     rule: str = "paper"
+    far_weight: float = 0.0
 
     @property
     def smoothness_path(self) -> NDArray[np.float64]:
@@ -149,7 +150,8 @@ class AdaptiveResult:
         out["selected_degree"] = self.selected_degree
         out["degrees"] = [d.to_dict() for d in self.degrees]
         out["adaptive"] = {"epsilon": self.epsilon, "delta": self.delta, "method": self.method,
-                           "reason": self.reason, "rule": self.rule, "seconds": self.seconds}
+                           "reason": self.reason, "rule": self.rule, "far_weight": self.far_weight,
+                           "seconds": self.seconds}
         chosen = self.at_degree(self.selected_degree)
         if "quality" in chosen.details:
             out["quality"] = chosen.details["quality"]
@@ -159,7 +161,7 @@ class AdaptiveResult:
 FitFunction = Callable[..., Any]
 
 
-def _fit_one(method: str | FitFunction, points, normals, degree, delta, rng, params, progress):
+def _fit_one(method: str | FitFunction, points, normals, degree, delta, rng, params, progress, far_weight):
     """Fit one degree; returns (polynomial, solutions, details)."""
     if callable(method):
         poly = method(points, normals, degree)
@@ -172,7 +174,8 @@ def _fit_one(method: str | FitFunction, points, normals, degree, delta, rng, par
     if progress is not None:
         def callback(state):
             progress({"event": "iteration", "degree": degree, **_state_dict(state)})
-    result = refine(points, normals, degree, method=method, delta=delta, rng=rng, callback=callback, **params)
+    result = refine(points, normals, degree, method=method, delta=delta, rng=rng, callback=callback,
+                    far_weight=far_weight, **params)
     details = {"nit": int(result.nit), "nfev": int(result.nfev)}
     return result.polynomial, tuple(result.solutions), details
 
@@ -189,8 +192,8 @@ def _state_dict(state) -> dict:
 
 def fit_adaptive(points: ArrayLike, normals: ArrayLike | None = None, *, method: str | FitFunction = DEFAULT_METHOD,
                  max_degree: int | None = None, min_degree: int = 2, epsilon: float = 0.01, delta: float = 0.25,
-                 rule: str = "paper", faces: ArrayLike | None = None, ordered_contour: bool = False,
-                 rng=None, progress: Callable[[dict], None] | None = None, **params) -> AdaptiveResult:
+                 rule: str = "geometric", far_weight: float | None = None, faces: ArrayLike | None = None,
+                 ordered_contour: bool | None = None, rng=None, progress: Callable[[dict], None] | None = None, **params) -> AdaptiveResult:
     """Find the degree the data needs (Algorithm 1) and fit at it.
 
     Parameters
@@ -204,12 +207,17 @@ def fit_adaptive(points: ArrayLike, normals: ArrayLike | None = None, *, method:
     min_degree : the first degree tried (even, default 2).
     epsilon : ε, the smallest smoothness gain that justifies a higher degree.
     delta : δ of the paper's distance.
-    rule : 'paper' (Algorithm 1) or 'geometric': the geometric quality of every degree is
+    far_weight : weight of the far-field term in the refinement objective
+        (:class:`ipfit.farfield.FarFieldTerm`); default
+        :data:`ipfit.farfield.DEFAULT_TERM_WEIGHT` for the refinement methods; 0 gives the
+        paper's objective. Not used by the linear methods ('3l-far' is 3L with far-field rows).
+    rule : 'geometric' (default) or 'paper' (Algorithm 1 exactly). 'geometric': the geometric quality of every degree is
         measured (:func:`ipfit.quality.quality`: F-score, spurious components, closed) and
         a degree whose zero set is not clean is not selected when a clean one exists; the
         loop goes on past the paper's stop until a clean degree has been seen.
     faces, ordered_contour : describe the data's shape for the quality measures (mesh faces;
-        a 2D contour in order), used with ``rule='geometric'``.
+        a 2D contour in order, detected by :func:`ipfit.quality.looks_like_contour` when
+        None), used with ``rule='geometric'``.
     rng : seed or Generator (SPEC 7), passed to the metaheuristics.
     progress : called with a dict per event ('degree_start', 'iteration', 'degree_done').
     **params : passed to the fixed-degree method (e.g. ``iterations``, ``population``).
@@ -246,6 +254,11 @@ def fit_adaptive(points: ArrayLike, normals: ArrayLike | None = None, *, method:
     if not callable(method):
         method = check_choice(method, "method", fixed_degree_methods())
     rule = check_choice(rule, "rule", RULES)
+    if far_weight is None:
+        from .farfield import DEFAULT_TERM_WEIGHT
+
+        far_weight = DEFAULT_TERM_WEIGHT
+    far_weight = check_nonnegative(far_weight, "far_weight")
     epsilon = check_real(epsilon, "epsilon")
     delta = check_nonnegative(delta, "delta")
     min_degree = check_int(min_degree, "min_degree", minimum=1)
@@ -270,7 +283,8 @@ def fit_adaptive(points: ArrayLike, normals: ArrayLike | None = None, *, method:
             progress({"event": "degree_start", "degree": degree})
         t0 = time.perf_counter()
         try:
-            poly, solutions, details = _fit_one(method, pts, unit, degree, delta, generator, params, progress)
+            poly, solutions, details = _fit_one(method, pts, unit, degree, delta, generator, params, progress,
+                                                far_weight)
         except KeyboardInterrupt:
             if not results:
                 raise
@@ -279,8 +293,10 @@ def fit_adaptive(points: ArrayLike, normals: ArrayLike | None = None, *, method:
         m = compute_measures(poly, pts, unit, delta=delta)
         poly = poly.with_coefficients(poly.coefficients, measures=m.to_dict())
         if rule == "geometric":
-            from .quality import quality
+            from .quality import looks_like_contour, quality
 
+            if ordered_contour is None:
+                ordered_contour = dim == 2 and looks_like_contour(pts)
             q = quality(poly, pts, faces=faces, ordered_contour=ordered_contour)
             details = {**details, "quality": q.to_dict()}
         entry = DegreeResult(degree, poly, float(m.dissimilarity), float(m.smoothness), float(m.distance),
@@ -305,7 +321,7 @@ def fit_adaptive(points: ArrayLike, normals: ArrayLike | None = None, *, method:
     chosen = results[index]
     name = method if isinstance(method, str) else getattr(method, "__name__", "custom")
     return AdaptiveResult(chosen.polynomial, chosen.degree, tuple(results), reason, epsilon, delta, name,
-                          time.perf_counter() - start, rule)
+                          time.perf_counter() - start, rule, far_weight if name in _refine_methods() else 0.0)
 
 
 def _is_clean(entry: DegreeResult) -> bool:

@@ -37,6 +37,8 @@ from . import basis
 from ._validation import (as_normals, as_points, check_choice, check_degree, check_int, check_nonnegative,
                           check_probability, check_rng, error)
 from .exceptions import IpfitError
+from .farfield import FarFieldTerm
+from .linear import DEFAULT_FAR_WEIGHT
 from .objective import DEFAULT_DELTA, Measures, Objective, _check_dtype, single_threaded_blas
 from .optimize import DifferentialEvolution, OptimizeResult, ParticleSwarm, polish as run_polish, unit_rows
 from .polynomial import ImplicitPolynomial, Normalization
@@ -205,7 +207,7 @@ def refine(points: ArrayLike, normals: ArrayLike, degree: int, method: str = "de
            c1: float = 2.05, c2: float = 2.05, F: float = 0.7, CR: float = 0.9, delta: float = DEFAULT_DELTA,
            polish: int = 1000, n_solutions: int = 5, rng=None,
            callback: Callable[[OptimizeResult], Any] | None = None, dtype=np.float64,
-           search_space: str = "whitened") -> RefineResult:
+           search_space: str = "whitened", far_weight: float = 0.0) -> RefineResult:
     r"""Refine linear fits by minimising the paper's distance (Eq. 5) at a fixed degree.
 
     Parameters
@@ -252,6 +254,11 @@ def refine(points: ArrayLike, normals: ArrayLike, degree: int, method: str = "de
         vector (normalised coordinates), ``fun`` its objective value, ``nit``, ``nfev``,
         ``history``, and ``message`` the stage ("de", "pso" or "polish"). Returning True
         stops that stage.
+    far_weight : float, default 0
+        Weight of the far-field term (:class:`~ipfit.farfield.FarFieldTerm`) added to the
+        objective: it penalises zero-set pieces away from the data. 0 is the paper's
+        objective exactly; with a positive weight, 3L with far-field rows joins the seeds.
+        The reported ``measures`` stay the paper's (without the term).
     dtype : numpy.float64 or numpy.float32
         Precision of the population evaluations. float32 is about twice as fast; seeds,
         the polish and the returned measures always use float64.
@@ -280,11 +287,11 @@ def refine(points: ArrayLike, normals: ArrayLike, degree: int, method: str = "de
     # threads only cost synchronisation (badly so when other processes compete for the cores).
     with single_threaded_blas():
         return _refine(points, normals, degree, method, population, iterations, seed_fraction, seeds, chi, c1, c2,
-                       F, CR, delta, polish, n_solutions, rng, callback, dtype, search_space)
+                       F, CR, delta, polish, n_solutions, rng, callback, dtype, search_space, far_weight)
 
 
 def _refine(points, normals, degree, method, population, iterations, seed_fraction, seeds, chi, c1, c2, F, CR,
-            delta, polish, n_solutions, rng, callback, dtype, search_space) -> RefineResult:
+            delta, polish, n_solutions, rng, callback, dtype, search_space, far_weight=0.0) -> RefineResult:
     started = time.perf_counter()
     pts = as_points(points)
     unit_normals = as_normals(normals, pts, required_by="refine")
@@ -315,12 +322,15 @@ def _refine(points, normals, degree, method, population, iterations, seed_fracti
 
     norm = Normalization.from_points(pts)
     u = norm.apply(pts)
-    obj64 = Objective(u, unit_normals, degree, delta)
-    obj_pop = obj64 if dtype == np.float64 else Objective(u, unit_normals, degree, delta, dtype=dtype)
+    far_weight = check_nonnegative(far_weight, "far_weight")
+    terms = [FarFieldTerm.from_data(u, unit_normals, degree, far_weight)] if far_weight > 0 else []
+    obj64 = Objective(u, unit_normals, degree, delta, terms=terms)
+    obj_pop = obj64 if dtype == np.float64 else Objective(u, unit_normals, degree, delta, dtype=dtype, terms=terms)
 
     # Seeds, best first.
     if seeds is None:
-        labels, coefs, notes = _linear_seeds(pts, unit_normals, degree, norm, DEFAULT_SEEDS)
+        pool = DEFAULT_SEEDS + ((("3l-far", "3l", {"far_weight": DEFAULT_FAR_WEIGHT}),) if far_weight > 0 else ())
+        labels, coefs, notes = _linear_seeds(pts, unit_normals, degree, norm, pool)
     else:
         if isinstance(seeds, (str, ImplicitPolynomial)) or (isinstance(seeds, np.ndarray) and seeds.ndim == 1):
             raise error("seeds", "a sequence of seeds", type(seeds).__name__, "Wrap a single seed in a list.")

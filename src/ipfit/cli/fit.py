@@ -45,6 +45,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="stop when smoothness improves by no more than this (default 0.01)")
     parser.add_argument("--delta", type=nonnegative_float, default=0.25,
                         help="penalty weight δ of the paper's distance (default 0.25)")
+    parser.add_argument("--far-weight", type=nonnegative_float, default=None, metavar="W",
+                        help="weight of the far-field term that keeps the zero set from growing spurious sheets "
+                        "(default 0.1; 0 is the paper's objective)")
+    parser.add_argument("--rule", choices=("geometric", "paper"), default="geometric",
+                        help="degree rule: 'paper' is Algorithm 1 exactly; 'geometric' (default) also refuses a "
+                        "degree whose zero set has spurious components or leaves the box when a clean one exists")
+    parser.add_argument("--paper", action="store_true",
+                        help="the paper's exact pipeline: --method de --far-weight 0 --rule paper")
     parser.add_argument("--iterations", type=positive_int, help="metaheuristic iterations (default 500)")
     parser.add_argument("--population", type=positive_int,
                         help="metaheuristic population (default 4 × the number of coefficients)")
@@ -102,6 +110,7 @@ def run(args: argparse.Namespace) -> int:
     from .. import basis
     from ..adaptive import fit_adaptive
     from ..exceptions import InvalidInputError
+    from ..linear import LINEAR_METHODS
 
     data = load_input(args.input)
     points, normals = data.points, data.normals
@@ -124,14 +133,18 @@ def run(args: argparse.Namespace) -> int:
         params["iterations"] = args.iterations
     if args.population is not None:
         params["population"] = args.population
-    if args.method in ("lstsq", "taubin", "3l", "ridge", "gradient_one") and params:
+    if args.method in LINEAR_METHODS and params:
         raise InvalidInputError(f"--iterations/--population: method {args.method!r} is a linear fit and has no "
                                 "iterations. Drop them or pick de, pso, de+polish or pso+polish.")
+    method, far_weight, rule = args.method, args.far_weight, args.rule
+    if args.paper:
+        method, far_weight, rule = "de", 0.0, "paper"
     progress = _Progress(show_progress(args.quiet), args.iterations or 500)
     lo = degree if degree is not None else 2
     hi = degree if degree is not None else args.max_degree
-    result = fit_adaptive(points, normals, method=args.method, min_degree=lo, max_degree=hi, epsilon=args.epsilon,
-                          delta=args.delta, rng=args.seed, progress=progress, **params)
+    result = fit_adaptive(points, normals, method=method, min_degree=lo, max_degree=hi, epsilon=args.epsilon,
+                          delta=args.delta, rule=rule, far_weight=far_weight, faces=data.faces, rng=args.seed,
+                          progress=progress, **params)
     payload = result.to_dict()
     payload["input"] = {"source": str(args.input), "n_points": int(len(points)), "normals": source}
     payload["bounds"] = np.column_stack([points.min(axis=0), points.max(axis=0)]).tolist()
