@@ -169,8 +169,11 @@ def test_adaptive_runs_are_the_library_adaptive_runs(quick_run):
     cfg = rep.CONFIGS["quick"]
     seed = results["run"]["seed"]
     data = rep.prepare_data("airplane", cfg, seed)
+    params = cfg.refine_params()
+    assert params.pop("far_weight") == 0.0  # the paper's objective
     direct = fit_adaptive(data.points, data.normals, method="de", epsilon=rep.PATH_EPSILON, delta=cfg.delta,
-                          max_degree=4, rng=rep._rng(seed, "adaptive", "airplane", "de"), **cfg.refine_params())
+                          max_degree=4, rng=rep._rng(seed, "adaptive", "airplane", "de"), rule="paper",
+                          far_weight=0.0, **params)
     saved = results["adaptive"]["datasets"]["airplane"]["runs"]["de"]["path"]
     assert [d.smoothness for d in direct.degrees] == [p["smoothness"] for p in saved[:2]]
     assert [d.distance for d in direct.degrees] == [p["distance"] for p in saved[:2]]

@@ -117,7 +117,9 @@ class FarFieldTerm:
         dim = self.samples.shape[1]
         exps = basis.exponents(dim, degree)
         self.n_lower = basis.n_coefficients(dim, degree - 1)
+        self.dim = dim
         self._m = basis.monomials(self.samples, exps)
+        self._low = np.ascontiguousarray(self._m[:, : self.n_lower])
         maps = basis.derivative_maps(dim, degree)
         self._source = np.stack([dk.indices for dk in maps])
         self._factor = np.stack([dk.data for dk in maps])
@@ -133,27 +135,38 @@ class FarFieldTerm:
         return cls(samples, targets, degree, weight, ratio=ratio)
 
     def _values_and_gradients(self, a: NDArray) -> tuple[NDArray, NDArray]:
-        """f (M, P) and ∇f (dim, M, P) at the samples for a (P, d) population."""
-        f = self._m @ a.T
-        low = self._m[:, : self.n_lower]
-        grads = np.stack([low @ (a[:, src] * fac).T for src, fac in zip(self._source, self._factor)])
-        return f, grads
+        """f (M, P) and ∇f (M, dim·P; axis k of member p in column k·P + p) at the samples."""
+        n_members = a.shape[0]
+        at = np.ascontiguousarray(a.T)
+        bt = np.empty((self.n_lower, self.dim * n_members))
+        for k in range(self.dim):
+            np.multiply(at[self._source[k]], self._factor[k][:, None], out=bt[:, k * n_members:(k + 1) * n_members])
+        return self._m @ at, self._low @ bt
 
     def __call__(self, population: NDArray[np.float64]) -> NDArray[np.float64]:
         a = np.atleast_2d(np.asarray(population, dtype=np.float64))
         if self.weight == 0 or len(self.samples) == 0:
             return np.zeros(a.shape[0])
+        n_members = a.shape[0]
         f, grads = self._values_and_gradients(a)
-        norm = np.sqrt(np.maximum(np.einsum("kmp,kmp->mp", grads, grads), np.finfo(float).tiny))
-        shortfall = 1.0 - (self._sign * self._scale)[:, None] * f / norm
-        return self.weight * np.clip(shortfall, 0.0, 2.0).mean(axis=0)
+        grads *= grads
+        sq = grads[:, :n_members]
+        for k in range(1, self.dim):
+            sq += grads[:, k * n_members:(k + 1) * n_members]
+        np.maximum(sq, np.finfo(float).tiny, out=sq)
+        np.sqrt(sq, out=sq)
+        f /= sq
+        f *= -(self._sign * self._scale)[:, None]
+        f += 1.0
+        np.clip(f, 0.0, 2.0, out=f)
+        return self.weight * f.mean(axis=0)
 
     def value_and_grad(self, coefficients: NDArray[np.float64]) -> tuple[float, NDArray[np.float64]]:
         a = np.asarray(coefficients, dtype=np.float64)
         if self.weight == 0 or len(self.samples) == 0:
             return 0.0, np.zeros_like(a)
         f, grads = self._values_and_gradients(a[None, :])
-        f, g = f[:, 0], grads[:, :, 0].T  # (M,), (M, dim)
+        f, g = f[:, 0], grads  # (M,), (M, dim)
         norm = np.sqrt(np.maximum(np.einsum("ij,ij->i", g, g), np.finfo(float).tiny))
         k = self._sign * self._scale
         shortfall = 1.0 - k * f / norm
@@ -163,7 +176,7 @@ class FarFieldTerm:
         coef_f = np.where(active, -k / norm, 0.0)
         coef_g = np.where(active, k * f / norm**3, 0.0)[:, None] * g  # (M, dim)
         grad = self._m.T @ coef_f
-        low_t = self._m[:, : self.n_lower].T @ coef_g  # (d_{g-1}, dim)
+        low_t = self._low.T @ coef_g  # (d_{g-1}, dim)
         for axis in range(g.shape[1]):
             grad[self._source[axis]] += self._factor[axis] * low_t[:, axis]
         return float(value), self.weight * grad / len(f)

@@ -19,10 +19,10 @@ fixed seeds, and write into DIR:
 Experiments: delta (Fig. 7), adaptive (Figs. 8-13, DE and PSO), ridge (3L + ridge, Figs. 14-15),
 noise (Fig. 16), convergence (PSO vs DE vs polish).
 
-Configurations: the default ('full': the paper's parameters, 3D data subsampled to 1,000 points)
-regenerates docs/reproduction (about 25 minutes on two cores); --medium runs 100 iterations
-instead of 500 (about 8 minutes); --quick is a smoke test of well under a minute whose numbers
-mean nothing.
+Configurations: the default ('full': the paper's parameters, 3D data subsampled to 2,000 points)
+regenerates docs/reproduction (about 6 minutes on two cores; the report states its wall time);
+--medium runs 100 iterations instead of 500 (about 3 minutes); --quick is a smoke test of under
+half a minute whose numbers mean nothing.
 """
 
 
