@@ -227,6 +227,7 @@ def _solve_gradient_one(problem: _Problem, mu: float = DEFAULT_MU, far_weight: f
 class _Method:
     solve: Callable[..., tuple[NDArray, dict]]
     needs_normals: bool
+    defaults: tuple[tuple[str, float], ...] = ()
 
 
 LINEAR_METHODS: dict[str, _Method] = {
@@ -235,15 +236,14 @@ LINEAR_METHODS: dict[str, _Method] = {
     "3l": _Method(_solve_3l, needs_normals=True),
     "ridge": _Method(_solve_ridge, needs_normals=True),
     "gradient_one": _Method(_solve_gradient_one, needs_normals=True),
-    "3l-far": _Method(lambda problem, **p: _solve_3l(problem, **{"far_weight": DEFAULT_FAR_WEIGHT, **p}),
-                      needs_normals=True),
+    "3l-far": _Method(_solve_3l, needs_normals=True, defaults=(("far_weight", DEFAULT_FAR_WEIGHT),)),
 }
 
 
 def _fit(method: str, points, normals, degree, **params) -> ImplicitPolynomial:
     spec = LINEAR_METHODS[method]
     problem = _prepare(points, normals, degree, method=f"fit_{method}", needs_normals=spec.needs_normals)
-    coef, info = spec.solve(problem, **params)
+    coef, info = spec.solve(problem, **{**dict(spec.defaults), **params})
     if not np.isfinite(coef).all() or not np.any(coef):
         raise error("points", "data that determine a polynomial", f"a degenerate {method} system",
                     "Check the points, the normals and the degree.")
@@ -361,8 +361,11 @@ def fit_linear(points: ArrayLike, normals: ArrayLike | None, degree: int, method
     weight), passing ``params`` to it."""
     method = check_choice(method, "method", LINEAR_METHODS)
     if method == "3l-far":
-        poly = fit_3l(points, normals, degree, **{"far_weight": DEFAULT_FAR_WEIGHT, **params})
-        return poly.with_coefficients(poly.coefficients, method="3l-far")
+        c = check_positive(params.pop("c", DEFAULT_OFFSET), "c")
+        far_weight = check_nonnegative(params.pop("far_weight", DEFAULT_FAR_WEIGHT), "far_weight")
+        if params:
+            raise error("params", "c and far_weight for '3l-far'", ", ".join(params))
+        return _fit("3l-far", points, normals, degree, c=c, far_weight=far_weight)
     funcs = {"lstsq": fit_lstsq, "taubin": fit_taubin, "3l": fit_3l, "ridge": fit_ridge,
              "gradient_one": fit_gradient_one}
     if LINEAR_METHODS[method].needs_normals:
