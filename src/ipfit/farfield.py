@@ -36,8 +36,10 @@ DEFAULT_CLEARANCE = 3.0
 #: still sees small loops between grid nodes (1/16 missed one inside the boot at degree 8).
 DEFAULT_RATIO = 1.0 / 8.0
 #: Grid nodes along the longest side for the objective term: denser than the linear rows' grid
-#: (40 / 16), since a loop smaller than a grid cell can hide between nodes.
-TERM_GRID = {2: 80, 3: 20}
+#: (40 / 16), since a loop smaller than a grid cell can hide between nodes (64 in 2D still caught
+#: the loops inside the boot that 40 missed); 3D sheets are large, and the term costs M × d × P
+#: per generation, so the 3D grid stays coarse.
+TERM_GRID = {2: 64, 3: 14}
 #: Recommended weight of the term in the objective (its values lie in [0, 2]; the paper's
 #: distance of good fits is 0.005-0.2): 0.1 removed every spurious component of DE + polish
 #: on the bundled contours at degrees 4-8, where 0.01 left some.
