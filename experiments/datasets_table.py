@@ -14,7 +14,6 @@ from datetime import date
 from pathlib import Path
 
 from ipfit.cli import main as ipfit_main
-from ipfit.datasets import bundled
 
 PAPER = {"airplane": 4, "boot": 6, "butterfly": 4, "apple": 4, "duck": 6, "bunny": 6}
 
@@ -29,8 +28,19 @@ def run(names, work: Path, extra: list[str]) -> list[dict]:
         if code != 0:
             raise SystemExit(f"ipfit fit {name} failed with exit code {code}")
         data = json.loads(prefix.with_name(name + ".json").read_text())
+        prefix.with_name(name + ".seconds").write_text(f"{seconds:.3f}\n")
         rows.append({"name": name, "n": data["input"]["n_points"], "seconds": seconds, "result": data})
         print(f"{name}: degree {data['selected_degree']} in {seconds:.1f} s", flush=True)
+    return rows
+
+
+def collect(names, work: Path) -> list[dict]:
+    """Rows from the results a previous run left in ``work`` (for rendering only)."""
+    rows = []
+    for name in names:
+        data = json.loads((work / f"{name}.json").read_text())
+        seconds = float((work / f"{name}.seconds").read_text())
+        rows.append({"name": name, "n": data["input"]["n_points"], "seconds": seconds, "result": data})
     return rows
 
 
@@ -73,12 +83,13 @@ def main(argv=None) -> int:
     parser.add_argument("--out", default="docs/datasets.md")
     parser.add_argument("--work", default="docs/datasets")
     parser.add_argument("--names", nargs="*", default=["airplane", "boot", "butterfly", "apple", "duck", "bunny"])
+    parser.add_argument("--render-only", action="store_true", help="tabulate the results already in --work")
     parser.add_argument("extra", nargs=argparse.REMAINDER, help="extra options for ipfit fit, after --")
     args = parser.parse_args(argv)
     extra = [a for a in args.extra if a != "--"]
     work = Path(args.work)
     work.mkdir(parents=True, exist_ok=True)
-    rows = run(args.names, work, extra)
+    rows = collect(args.names, work) if args.render_only else run(args.names, work, extra)
     Path(args.out).write_text(markdown(rows, extra), encoding="utf-8")
     print(f"wrote {args.out}")
     return 0

@@ -170,12 +170,11 @@ def _fit_one(method: str | FitFunction, points, normals, degree, delta, rng, par
         return fit_linear(points, normals, degree, method, **params), (), {}
     from .refine import refine
 
-    callback = None
-    if progress is not None:
-        def callback(state):
-            progress({"event": "iteration", "degree": degree, **_state_dict(state)})
-    result = refine(points, normals, degree, method=method, delta=delta, rng=rng, callback=callback,
-                    far_weight=far_weight, **params)
+    def report(state):
+        progress({"event": "iteration", "degree": degree, **_state_dict(state)})
+
+    result = refine(points, normals, degree, method=method, delta=delta, rng=rng,
+                    callback=report if progress is not None else None, far_weight=far_weight, **params)
     details = {"nit": int(result.nit), "nfev": int(result.nfev)}
     return result.polynomial, tuple(result.solutions), details
 

@@ -11,11 +11,9 @@ matplotlib is imported only when a function here is called.
 
 from __future__ import annotations
 
-import json
 import math
 import os
 import sys
-from pathlib import Path
 from typing import Any, Mapping, NamedTuple, Sequence
 
 import numpy as np
@@ -243,21 +241,9 @@ def load_result(result: Mapping[str, Any] | str | os.PathLike | ImplicitPolynomi
     if isinstance(result, Mapping):
         return dict(result)
     if isinstance(result, (str, os.PathLike)):
-        path = Path(result)
-        try:
-            text = path.read_text(encoding="utf-8")
-        except FileNotFoundError:
-            raise ReadError(f"{path}: no such file. Check the path.") from None
-        except (OSError, UnicodeDecodeError) as exc:
-            raise ReadError(f"{path}: cannot be read ({exc.__class__.__name__}). Check the file.") from None
-        try:
-            data = json.loads(text)
-        except json.JSONDecodeError as exc:
-            raise ReadError(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno}). "
-                            "Pass a result written by ipfit.") from None
-        if not isinstance(data, dict):
-            raise ReadError(f"{path}: not an ipfit result (a JSON object was expected). Pass a result written by ipfit.")
-        return data
+        from .polynomial import read_result_json
+
+        return read_result_json(result)
     raise error("result", "a result dict, a path to a result JSON or an ImplicitPolynomial", type(result).__name__)
 
 

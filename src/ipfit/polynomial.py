@@ -322,18 +322,7 @@ class ImplicitPolynomial:
         """Read a JSON result written by :meth:`save` (extra keys are ignored)."""
         from .exceptions import ReadError
 
-        path = Path(path)
-        try:
-            text = path.read_text(encoding="utf-8")
-        except FileNotFoundError:
-            raise ReadError(f"{path}: no such file. Check the path.") from None
-        except (OSError, UnicodeDecodeError) as exc:
-            raise ReadError(f"{path}: cannot be read ({exc.__class__.__name__}). Check the file.") from None
-        try:
-            data = json.loads(text)
-        except json.JSONDecodeError as exc:
-            raise ReadError(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno}). "
-                            "Pass a result written by ipfit.") from None
+        data = read_result_json(path)
         try:
             return cls.from_dict(data, source=str(path))
         except InvalidInputError as exc:
@@ -342,6 +331,27 @@ class ImplicitPolynomial:
     def __repr__(self) -> str:
         return (f"ImplicitPolynomial(dim={self.dim}, degree={self.degree}, "
                 f"n_coefficients={self.n_coefficients}, method={self.method!r})")
+
+
+def read_result_json(path: str | os.PathLike) -> dict:
+    """The JSON object of a result file, or a :class:`~ipfit.ReadError` naming the file."""
+    from .exceptions import ReadError
+
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ReadError(f"{path}: no such file. Check the path.") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ReadError(f"{path}: cannot be read ({exc.__class__.__name__}). Check the file.") from None
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ReadError(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno}). "
+                        "Pass a result written by ipfit.") from None
+    if not isinstance(data, dict):
+        raise ReadError(f"{path}: not an ipfit result (a JSON object was expected). Pass a result written by ipfit.")
+    return data
 
 
 def _sphere_directions(dim: int, n: int = 64) -> NDArray[np.float64]:

@@ -861,7 +861,7 @@ def figure_adaptive(name: str, method: str, results: Mapping, store: dict, cfg: 
     comparisons = {}
     degrees = [selected] + sorted({s["degree"] for s in run["selection"].values()} - {selected})
     for degree in degrees:
-        suffix = "" if degree == selected else f" (ε=0 choice)"
+        suffix = "" if degree == selected else " (ε=0 choice)"
         for lin, title in (("lstsq", "classic linear"), ("3l", "3L")):
             lpoly = store["polys"][("linear", name, lin, degree)]
             comparisons[title + suffix] = {"coefficients": [float(c) for c in lpoly.coefficients]}

@@ -6,6 +6,8 @@ import argparse
 import shlex
 import sys
 
+from ._common import nonnegative_int
+
 NAME = "reproduce"
 HELP = "rerun the paper's experiments (Figs. 7-16) and write a Markdown report with figures"
 DESCRIPTION = """\
@@ -35,22 +37,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         mode.add_argument(f"--{name}", dest="config", action="store_const", const=name,
                           help=cfg.description + (" (the default)" if name == DEFAULT_CONFIG else ""))
     parser.set_defaults(config=DEFAULT_CONFIG)
-    parser.add_argument("--seed", type=_seed, default=0, help="seed of every random choice (default 0)")
+    parser.add_argument("--seed", type=nonnegative_int, default=0, help="seed of every random choice (default 0)")
     parser.add_argument("--only", nargs="+", choices=EXPERIMENTS, metavar="EXPERIMENT",
                         help="run only these experiments: " + ", ".join(EXPERIMENTS))
     parser.add_argument("--datasets", nargs="+", choices=DATASETS, metavar="NAME",
                         help="restrict the adaptive experiment to these datasets: " + ", ".join(DATASETS))
     parser.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
-
-
-def _seed(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 0, got {value}")
-    return value
 
 
 def run(args: argparse.Namespace) -> int:
