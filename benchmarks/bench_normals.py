@@ -80,6 +80,35 @@ def quality() -> None:
                       f"{100 * a.flipped[~mixed].mean():>14.2f}%")
 
 
+def noisy() -> None:
+    """Gaussian noise of σ = 0.5-2% of the bounding box's diagonal (contours shuffled too)."""
+    from ipfit.datasets import synthetic
+    from ipfit.normals import contour_normals
+
+    rng = np.random.default_rng(0)
+    cases = []
+    for name in ("boot", "butterfly"):
+        points, _ = bundled.load_dataset(name)
+        cases += [(name, f, points, contour_normals(points, span=2), True) for f in (0.005, 0.01, 0.02)]
+    for name, make in (("sphere", synthetic.sphere), ("torus", synthetic.torus)):
+        points, truth, _ = make(3000, rng=rng)
+        cases += [(name, f, points, truth, False) for f in (0.005, 0.01)]
+    points, refs = references("bunny_res2")
+    cases += [("bunny_res2", f, points, refs[0][1], False) for f in (0.005, 0.01)]
+    print(f"\n{'noisy dataset':<22} {'σ/diag':>7} {'points':>7} {'median°':>8} {'flipped':>8} {'time':>7}")
+    for name, fraction, points, reference, shuffle in cases:
+        sigma = fraction * float(np.linalg.norm(np.ptp(points, axis=0)))
+        p = points + rng.normal(0.0, sigma, points.shape)
+        order = rng.permutation(len(p)) if shuffle else np.arange(len(p))
+        start = time.perf_counter()
+        est = estimate_normals(p[order])
+        elapsed = time.perf_counter() - start
+        a = normal_agreement(est, reference[order])
+        print(f"{name:<22} {100 * fraction:>6.1f}% {len(p):>7,} {a.median_angle:>8.2f} "
+              f"{100 * a.flipped_fraction:>7.2f}% {elapsed:>6.2f}s")
+
+
 if __name__ == "__main__":
     timing()
     quality()
+    noisy()
