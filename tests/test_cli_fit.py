@@ -8,6 +8,8 @@ from pathlib import Path
 
 import pytest
 
+import ipfit
+
 from ipfit.adaptive import select_degree, select_degree_geometric
 from ipfit.cli import main
 
@@ -72,6 +74,13 @@ def test_paper_flag_runs_the_papers_exact_pipeline(tmp_path):
     assert data["adaptive"]["rule"] == "paper" and data["adaptive"]["far_weight"] == 0.0
     assert data["method"] == "de"
     assert_obeys_its_rule(data)
+    from ipfit.refine import refine
+
+    points, normals = ipfit.load_dataset("airplane")
+    degree = data["degrees"][0]["degree"]
+    same = refine(points, normals, degree, method="de", iterations=10, rng=0, search_space="coefficients",
+                  seeds=["lstsq", "3l"])
+    assert data["degrees"][0]["coefficients"] == same.polynomial.coefficients.tolist()
 
 
 @pytest.mark.parametrize("argv,message", [

@@ -18,7 +18,10 @@ DESCRIPTION = """\
 Fit an implicit polynomial to INPUT (a point file: PLY, OBJ, OFF, STL, XYZ/TXT/CSV, NPY/NPZ, or a
 silhouette image; or the name of a bundled dataset, see `ipfit datasets`).
 
-The degree is chosen by the paper's adaptive rule unless --degree N fixes it. Outputs, all written
+The degree is chosen adaptively (the paper's Algorithm 1, refusing degrees whose zero set has
+spurious components when a clean one exists) unless --degree N fixes it. The default method is
+DE + L-BFGS polish with a far-field term; --paper runs the paper's exact pipeline instead.
+Outputs, all written
 together or not at all:
   PREFIX.json   coefficients, normalisation, measures, selected_degree and the per-degree table
   PREFIX.png    the points with the zero set of each degree tried and the smoothness curve
@@ -40,7 +43,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="largest degree the adaptive loop tries (default 10 in 2D, 8 in 3D)")
     parser.add_argument("--method", default=DEFAULT_METHOD, choices=fixed_degree_methods(), metavar="METHOD",
                         help="fixed-degree method: " + ", ".join(fixed_degree_methods())
-                        + f" (default {DEFAULT_METHOD}; 'de' and 'pso' are the paper's exact variants)")
+                        + f" (default {DEFAULT_METHOD}; 'de' and 'pso' are the paper's metaheuristics)")
     parser.add_argument("--epsilon", type=finite_float, default=0.01,
                         help="stop when smoothness improves by no more than this (default 0.01)")
     parser.add_argument("--delta", type=nonnegative_float, default=0.25,
@@ -52,7 +55,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="degree rule: 'paper' is Algorithm 1 exactly; 'geometric' (default) also refuses a "
                         "degree whose zero set has spurious components or leaves the box when a clean one exists")
     parser.add_argument("--paper", action="store_true",
-                        help="the paper's exact pipeline: --method de --far-weight 0 --rule paper")
+                        help="the paper's exact pipeline: --method de --far-weight 0 --rule paper, DE in the raw "
+                        "coefficients seeded with the classic and 3L fits only")
     parser.add_argument("--iterations", type=positive_int, help="metaheuristic iterations (default 500)")
     parser.add_argument("--population", type=positive_int,
                         help="metaheuristic population (default 4 × the number of coefficients)")
@@ -139,6 +143,7 @@ def run(args: argparse.Namespace) -> int:
     method, far_weight, rule = args.method, args.far_weight, args.rule
     if args.paper:
         method, far_weight, rule = "de", 0.0, "paper"
+        params.update(search_space="coefficients", seeds=["lstsq", "3l"])
     progress = _Progress(show_progress(args.quiet), args.iterations or 500)
     lo = degree if degree is not None else 2
     hi = degree if degree is not None else args.max_degree
