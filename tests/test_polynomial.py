@@ -97,3 +97,17 @@ def test_evaluation_rejects_wrong_dimension():
     poly = ImplicitPolynomial.from_coefficients([-1, 0, 0, 1, 0, 1], dim=2)
     with pytest.raises(InvalidInputError, match=r"points: expected an array of shape \(N, 2\)"):
         poly(np.zeros((4, 3)))
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+@pytest.mark.parametrize("degree", [1, 2, 5, 8, 10])
+def test_gradient_in_user_coordinates_matches_central_differences(dim, degree, rng):
+    from ipfit import basis
+
+    norm = Normalization(rng.normal(0, 10, dim), float(rng.uniform(0.1, 10)))
+    coef = rng.normal(size=basis.n_coefficients(dim, degree))
+    poly = ImplicitPolynomial.from_coefficients(coef, dim=dim, normalization=norm)
+    pts = norm.invert(rng.uniform(-1.2, 1.2, size=(15, dim)))
+    h = 1e-6 * norm.scale
+    fd = np.stack([(poly(pts + h * e) - poly(pts - h * e)) / (2 * h) for e in np.eye(dim)], axis=1)
+    np.testing.assert_allclose(poly.gradient(pts), fd, rtol=1e-5, atol=1e-6 * np.abs(fd).max())
