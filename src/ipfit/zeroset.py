@@ -472,7 +472,7 @@ def extract_zero_set(poly: ImplicitPolynomial, bounds: ArrayLike | None = None, 
         try:
             verts, faces, _, _ = marching_cubes(values, level=0.0, spacing=tuple(spacing), allow_degenerate=False)
         except (ValueError, RuntimeError):  # no crossing left after degenerate faces are dropped
-            pass
+            verts, faces = np.empty((0, 3)), np.empty((0, 3), dtype=np.int64)
         verts = verts + lo
         faces = faces.astype(np.int64)
     return ZeroSet(3, box, spacing, shape, vertices=verts, faces=faces, reaches_boundary=reaches, polynomial=poly)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import abc
 from dataclasses import dataclass, field
 from typing import Any, Callable, Iterator
 
@@ -57,7 +58,7 @@ def unit_rows(x: NDArray[np.float64]) -> NDArray[np.float64]:
     return x / np.where(norm > 0, norm, 1.0)
 
 
-class PopulationSolver:
+class PopulationSolver(abc.ABC):
     """Base of :class:`DifferentialEvolution` and :class:`ParticleSwarm`.
 
     Subclasses implement ``_step()`` (one generation, exactly one call of ``func``).
@@ -119,8 +120,9 @@ class PopulationSolver:
     def history(self) -> NDArray[np.float64]:
         return np.array(self._history)
 
-    def _step(self) -> None:  # pragma: no cover - abstract
-        raise NotImplementedError
+    @abc.abstractmethod
+    def _step(self) -> None:
+        """Advance the population by one generation (DE and PSO define it)."""
 
     # -- public loop -----------------------------------------------------------------------
     def step(self) -> OptimizeResult:
