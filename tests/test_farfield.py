@@ -87,3 +87,15 @@ def test_far_field_weight_zero_is_plain_3l(rng):
     a = ipfit.fit_3l(shape.points, shape.normals, 4, far_weight=0.0)
     b = ipfit.fit_3l(shape.points, shape.normals, 4)
     np.testing.assert_array_equal(a.coefficients, b.coefficients)
+
+
+def test_refine_with_far_field_reports_both_values():
+    from ipfit.refine import refine
+
+    shape = synthetic.ellipse(80)
+    plain = refine(shape.points, shape.normals, 4, iterations=5, rng=0)
+    far = refine(shape.points, shape.normals, 4, iterations=5, rng=0, far_weight=0.1)
+    assert plain.fun == pytest.approx(plain.distance)  # weight 0: the paper's objective
+    assert far.fun >= far.distance  # the term is non-negative and reported separately
+    assert far.info["far_weight"] == 0.1 and "3l-far" in far.seed_distances
+    np.testing.assert_array_equal(far.x, far.polynomial.coefficients)

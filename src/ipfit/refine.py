@@ -119,6 +119,16 @@ class RefineResult:
         return float(self.measures.distance)
 
     @property
+    def x(self) -> NDArray[np.float64]:
+        """The best coefficient vector (unit norm, normalised coordinates), as in SciPy's results."""
+        return self.polynomial.coefficients
+
+    @property
+    def fun(self) -> float:
+        """The objective's value at ``x``: the paper's distance plus any far-field term."""
+        return float(self.info.get("objective", self.measures.distance))
+
+    @property
     def best_seed_distance(self) -> float:
         return float(self.seed_distances[self.best_seed]) if self.best_seed is not None else float("inf")
 
@@ -457,7 +467,8 @@ def _refine(points, normals, degree, method, population, iterations, seed_fracti
     if used_seed:
         messages.append("no candidate beat the best seed: returning it")
     info = {"population": size, "iterations": iterations, "seed_fraction": seed_fraction, "delta": delta,
-            "dtype": dtype.name, "search_space": search_space, "notes": notes, "n_seeds": len(seed_distances)}
+            "dtype": dtype.name, "search_space": search_space, "notes": notes, "n_seeds": len(seed_distances),
+            "far_weight": far_weight, "objective": float(obj64(best_poly.coefficients)[0])}
     if metaheuristic == "de":
         info.update(F=float(F), CR=float(CR))
     elif metaheuristic == "pso":
