@@ -272,7 +272,7 @@ class ImplicitPolynomial:
         if self.measures is not None:
             out["measures"] = dict(self.measures)
         if self.info:
-            out["info"] = _jsonable(dict(self.info))
+            out["info"] = to_jsonable(dict(self.info))
         return out
 
     def to_json(self, indent: int | None = 1) -> str:
@@ -365,15 +365,18 @@ def _sphere_directions(dim: int, n: int = 64) -> NDArray[np.float64]:
     return np.column_stack([r * np.cos(phi), r * np.sin(phi), z])
 
 
-def _jsonable(value):
-    if isinstance(value, dict):
-        return {str(k): _jsonable(v) for k, v in value.items()}
+def to_jsonable(value):
+    """JSON-ready copy: numpy scalars and arrays to Python, non-finite floats to None."""
+    if isinstance(value, Mapping):
+        return {str(k): to_jsonable(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
-        return [_jsonable(v) for v in value]
+        return [to_jsonable(v) for v in value]
     if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
+        return [to_jsonable(v) for v in value.tolist()]
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        return float(value) if math.isfinite(value) else None
     return value

@@ -37,6 +37,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .exceptions import InvalidInputError, IpfitError
+from .polynomial import to_jsonable
 
 __all__ = ["Config", "CONFIGS", "EXPERIMENTS", "DATASETS", "PAPER_DEGREES", "reproduce", "render_report",
            "summarize", "load_results", "run_delta", "run_adaptive", "run_ridge", "run_noise", "run_convergence"]
@@ -1276,23 +1277,6 @@ def _data(store: dict, name: str, cfg: Config, seed: int) -> Data:
     return cache[name]
 
 
-def _plain(value):
-    """JSON-ready copy: numpy scalars and arrays to Python, non-finite floats to None."""
-    if isinstance(value, Mapping):
-        return {str(k): _plain(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return [_plain(v) for v in value.tolist()]
-    if isinstance(value, (bool, np.bool_)):
-        return bool(value)
-    if isinstance(value, (int, np.integer)):
-        return int(value)
-    if isinstance(value, (float, np.floating)):
-        return float(value) if math.isfinite(value) else None
-    return value
-
-
 def _commit() -> str | None:
     import subprocess
 
@@ -1355,7 +1339,7 @@ def reproduce(out: str | os.PathLike, config: str | Config = DEFAULT_CONFIG, *, 
             log(f"[{time.perf_counter() - started:7.1f} s] {message}")
 
     store: dict[str, Any] = {}
-    results: dict[str, Any] = {"config": _plain(asdict(cfg))}
+    results: dict[str, Any] = {"config": to_jsonable(asdict(cfg))}
     timings: dict[str, float] = {}
     for name in chosen:
         t0 = time.perf_counter()
@@ -1372,12 +1356,12 @@ def reproduce(out: str | os.PathLike, config: str | Config = DEFAULT_CONFIG, *, 
             results["convergence"] = run_convergence(cfg, seed, say, store)
         timings[name] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    results = _plain(results)
-    results["data"] = _plain({k: v.describe() for k, v in store.get("data", {}).items()})
+    results = to_jsonable(results)
+    results["data"] = to_jsonable({k: v.describe() for k, v in store.get("data", {}).items()})
     results["figures"] = _write_figures(results, store, cfg, out, say)
     timings["figures"] = time.perf_counter() - t0
-    results["summary"] = _plain(summarize(results))
-    results["run"] = _plain({
+    results["summary"] = to_jsonable(summarize(results))
+    results["run"] = to_jsonable({
         "command": command or f"ipfit reproduce --out {out}" + ("" if cfg.name == DEFAULT_CONFIG else f" --{cfg.name}"),
         "seed": seed, "experiments": list(chosen), "ipfit_version": __version__, "commit": _commit(),
         "machine": f"{platform.machine()}, {os.cpu_count()} CPUs, Python {platform.python_version()}, "
