@@ -21,6 +21,7 @@ from .plotting import plot_curve, plot_result, plot_smoothness, plot_surface
 from .polynomial import ImplicitPolynomial, Normalization
 from .quality import Quality, quality
 from .refine import REFINE_METHODS, RefineResult, refine
+from .solid import outward_vertices, winding_number
 from .zeroset import ZeroSet, extract_zero_set, grid_values
 
 __version__ = "0.1.0"
@@ -50,6 +51,8 @@ __all__ = [
     "orient_normals",
     "normal_agreement",
     "contour_normals",
+    "winding_number",
+    "outward_vertices",
     "load_dataset",
     "list_datasets",
     "dataset_names",

@@ -18,6 +18,7 @@ __all__ = [
     "error",
     "as_points",
     "as_normals",
+    "as_faces",
     "check_degree",
     "check_real",
     "check_positive",
@@ -90,6 +91,23 @@ def as_normals(normals: ArrayLike | None, points: NDArray[np.float64], name: str
         raise error(name, "non-zero normal vectors", f"{int(tiny.sum())} zero-length normals (first at row {first})",
                     "Remove those points or estimate normals with ipfit.estimate_normals.")
     return arr / length[:, None]
+
+
+def as_faces(faces: ArrayLike, n_points: int, dim: int = 3) -> NDArray[np.int64]:
+    """Triangles as an (F, 3) integer array of row indices into ``n_points`` points."""
+    if dim != 3:
+        raise error("faces", "None for 2D data", "faces", "Faces describe 3D meshes; pass ordered_contour for 2D.")
+    try:
+        arr = np.asarray(faces)
+    except (TypeError, ValueError):
+        raise error("faces", "an (F, 3) integer array", type(faces).__name__) from None
+    if arr.ndim != 2 or arr.shape[1] != 3 or (arr.size and not np.issubdtype(arr.dtype, np.integer)):
+        raise error("faces", "an (F, 3) integer array of point indices", f"shape {arr.shape}, dtype {arr.dtype}",
+                    "Pass triangles; split polygons first.")
+    if arr.size and (arr.min() < 0 or arr.max() >= n_points):
+        raise error("faces", f"indices in [0, {n_points})", f"indices in [{arr.min()}, {arr.max()}]",
+                    "Faces must index the rows of points.")
+    return arr.astype(np.int64)
 
 
 def check_int(value: Any, name: str, *, minimum: int | None = None, maximum: int | None = None) -> int:

@@ -311,7 +311,7 @@ def fit_3l(points: ArrayLike, normals: ArrayLike, degree: int, c: float = DEFAUL
     >>> from ipfit.datasets.synthetic import circle
     >>> shape = circle(80)
     >>> poly = fit_3l(shape.points, shape.normals, degree=2)
-    >>> bool(abs(poly([[1.0, 0.0]])[0]) < 1e-9)
+    >>> bool(abs(poly([[1.0, 0.0]])[0]) < 1e-2)  # 3L is close, not exact: level sets ±c of x²+y²−1 are not at distance c
     True
     """
     return _fit("3l", points, normals, degree, c=check_positive(c, "c"),

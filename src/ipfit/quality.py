@@ -35,7 +35,7 @@ from typing import Any, Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ._validation import as_points, check_int, check_positive, error
+from ._validation import as_faces, as_points, check_int, check_positive, error
 from .polynomial import ImplicitPolynomial
 from .zeroset import Samples, ZeroSet, extract_zero_set, sample_segments, sample_triangles
 
@@ -110,22 +110,6 @@ def looks_like_contour(points: ArrayLike) -> bool:
     if scale == 0:
         return False
     return bool(np.quantile(gaps, 0.95) <= 4 * scale)
-
-
-def _check_faces(faces: ArrayLike, n_points: int, dim: int) -> NDArray[np.int64]:
-    if dim != 3:
-        raise error("faces", "None for 2D data", "faces", "Faces describe 3D meshes; pass ordered_contour for 2D.")
-    try:
-        arr = np.asarray(faces)
-    except (TypeError, ValueError):
-        raise error("faces", "an (F, 3) integer array", type(faces).__name__) from None
-    if arr.ndim != 2 or arr.shape[1] != 3 or (arr.size and not np.issubdtype(arr.dtype, np.integer)):
-        raise error("faces", "an (F, 3) integer array of point indices", f"shape {arr.shape}, dtype {arr.dtype}",
-                    "Pass triangles; split polygons first.")
-    if arr.size and (arr.min() < 0 or arr.max() >= n_points):
-        raise error("faces", f"indices in [0, {n_points})", f"indices in [{arr.min()}, {arr.max()}]",
-                    "Faces must index the rows of points.")
-    return arr.astype(np.int64)
 
 
 def _point_segment(p: NDArray, a: NDArray, b: NDArray) -> NDArray:
@@ -317,7 +301,7 @@ def quality(model: ImplicitPolynomial | ZeroSet, points: ArrayLike, *, faces: Ar
     band = 2 * tau + 2 * spacing
 
     if faces is not None:
-        face_array = _check_faces(faces, len(pts), dim)
+        face_array = as_faces(faces, len(pts), dim)
         if len(face_array):
             ref = _mesh_target(pts, face_array, sample_triangles(pts, face_array, spacing, max_samples=max_samples),
                                band)
