@@ -20,6 +20,23 @@ def test_estimate_and_compare_on_a_bundled_mesh(tmp_path, capsys):
     assert points.shape == normals.shape == (453, 3)
 
 
+def test_outward_check_on_a_mesh_that_passes_through_itself(tmp_path, capsys):
+    # Two unit cubes overlapping: one corner of each lies inside the other (see test_solid).
+    import trimesh
+
+    a, b = trimesh.creation.box(), trimesh.creation.box()
+    b.apply_translation([0.5, 0.3, 0.2])
+    mesh = trimesh.Trimesh(np.vstack([a.vertices, b.vertices]), np.vstack([a.faces, b.faces + 8]), process=False)
+    src = tmp_path / "boxes.ply"
+    mesh.export(src)
+    assert main(["normals", str(src), "-o", str(tmp_path / "out.ply"), "--estimate", "--outward"]) == 0
+    text = capsys.readouterr().out
+    assert "2 of 16 normals from the faces (area-weighted) do not point out of the mesh's solid" in text
+    assert "over the other 14," in text
+    assert main(["normals", str(src), "-o", str(tmp_path / "out.ply"), "--outward"]) == 0
+    assert "--outward only matters with --estimate" in capsys.readouterr().out
+
+
 def test_copy_the_files_normals(tmp_path, shared_data, capsys):
     out = tmp_path / "apple.csv"
     assert main(["normals", str(shared_data / "3d" / "apple.ply"), "-o", str(out)]) == 0

@@ -18,7 +18,10 @@ by extension: .ply, .csv, .xyz, .txt, .npy, .npz), e.g. to look at them in MeshL
 The normals are the file's own (for meshes without vertex normals: area-weighted from the faces;
 for images: outward normals of the traced boundary). With --estimate, or when the file has none,
 they are estimated by k-nearest-neighbour PCA with consistent outward orientation; where the file
-has normals too, the command reports how many estimated normals point the other way.
+has normals too, the command reports how many estimated normals point the other way. For meshes,
+--outward first checks which of those reference normals point out of the mesh's solid (generalized
+winding numbers; a mesh that passes through itself, or has holes, has some that do not) and
+reports the disagreement over the others too.
 """
 
 _OFF_LINE = 30.0  # degrees: report estimated normals whose line differs more than this
@@ -32,11 +35,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="estimate the normals (and compare them with the file's) instead of copying them")
     parser.add_argument("--k", type=positive_int, metavar="K",
                         help="neighbours per point for the estimate (default 6 in 2D, 12 in 3D)")
+    parser.add_argument("--outward", action="store_true",
+                        help="with --estimate on a mesh: also compare only where the reference normals point out "
+                             "of the solid (winding numbers: seconds per 10,000 vertices × 10,000 faces)")
     parser.add_argument("--ascii", action="store_true", help="write an ASCII PLY instead of a binary one")
 
 
 def _load(spec: str):
-    """(points, reference normals or None, where they come from, label)."""
+    """(points, reference normals or None, where they come from, label, faces or None)."""
     from .. import io
     from ..datasets import bundled
     from ..exceptions import ReadError
@@ -44,16 +50,16 @@ def _load(spec: str):
     path = Path(spec)
     if not path.exists() and spec in bundled.dataset_names():
         points, normals = bundled.load_dataset(spec)
-        return points, normals, f"the bundled '{spec}' reference", spec
+        return points, normals, f"the bundled '{spec}' reference", spec, bundled.dataset_faces(spec)
     if path.exists() or path.suffix:  # a path: the reader reports a missing file clearly
         mesh = io.read_mesh(path)
         if mesh.normals is not None:
             traced = path.suffix.lower() in io._IMAGE_SUFFIXES
-            return mesh.points, mesh.normals, "the traced boundary" if traced else "the file", str(path)
+            return mesh.points, mesh.normals, "the traced boundary" if traced else "the file", str(path), mesh.faces
         if mesh.faces is not None and mesh.points.shape[1] == 3:
             normals = io._complete(mesh.points, io.vertex_normals_from_faces(mesh.points, mesh.faces))
-            return mesh.points, normals, "the faces (area-weighted)", str(path)
-        return mesh.points, None, None, str(path)
+            return mesh.points, normals, "the faces (area-weighted)", str(path), mesh.faces
+        return mesh.points, None, None, str(path), mesh.faces
     names = ", ".join(bundled.dataset_names())
     raise ReadError(f"{spec}: no such file, nor a bundled dataset name ({names}). Check the path.")
 
@@ -70,7 +76,7 @@ def run(args: argparse.Namespace) -> int:
     if str(out.parent) and not out.parent.is_dir():
         raise InvalidInputError(f"{out}: the folder {out.parent} does not exist. "
                                 "Create it first or choose another path.")
-    points, reference, source, label = _load(args.input)
+    points, reference, source, label, faces = _load(args.input)
     n, dim = points.shape
     print(f"{label}: {n:,} points ({dim}D), " + (f"normals from {source}" if reference is not None else "no normals"))
 
@@ -89,8 +95,27 @@ def run(args: argparse.Namespace) -> int:
             print(f"disagree with {source}: {flipped:,} of {agreement.compared:,} point the other way "
                   f"({100 * flipped / max(agreement.compared, 1):.2f}%); {off:,} lines off by more than "
                   f"{_OFF_LINE:.0f}°; median angle {agreement.median_angle:.2f}°")
+            if args.outward:
+                _report_outward(points, faces, reference, agreement, source)
     elif args.k is not None:
         print("note: --k only matters with --estimate")
+    if args.outward and not (args.estimate and reference is not None and faces is not None and dim == 3):
+        print("note: --outward only matters with --estimate on a 3D mesh (faces) that has reference normals")
     io.write_points(out, points, normals, binary=not args.ascii)
     print(f"wrote {out} ({n:,} points with normals)")
     return 0
+
+
+def _report_outward(points, faces, reference, agreement, source) -> None:
+    if faces is None or points.shape[1] != 3:
+        return
+    from ..solid import outward_vertices
+
+    start = time.perf_counter()
+    outward = outward_vertices(points, faces, reference)
+    seconds = time.perf_counter() - start
+    inward = int((~outward).sum())
+    flipped = int(agreement.flipped[outward].sum())
+    print(f"{inward:,} of {len(points):,} normals from {source} do not point out of the mesh's solid "
+          f"(it passes through itself or is open there; {seconds:.1f} s); over the other {int(outward.sum()):,}, "
+          f"{flipped:,} estimated normals point the other way ({100 * flipped / max(int(outward.sum()), 1):.2f}%)")
