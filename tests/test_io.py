@@ -229,6 +229,29 @@ def test_off_and_stl(tmp_path):
         assert np.all(np.einsum("ij,ij->i", normals, _unit(points)) > 0.95)
 
 
+def test_noff_vertex_normals(tmp_path):
+    # a tetrahedron written by hand: NOFF vertex lines are x y z nx ny nz
+    text = """NOFF
+# a comment
+4 4 0
+0 0 0  -1 -1 -1
+1 0 0  1 0 0
+0 1 0  0 1 0
+0 0 1  0 0 1
+3 0 2 1
+3 0 1 3
+3 0 3 2
+3 1 2 3
+"""
+    (tmp_path / "t.off").write_text(text)
+    mesh = io.read_mesh(tmp_path / "t.off")
+    assert mesh.faces.shape == (4, 3)
+    np.testing.assert_allclose(mesh.normals, [[-3 ** -0.5] * 3, [1, 0, 0], [0, 1, 0], [0, 0, 1]])
+    (tmp_path / "h.off").write_text("4OFF\n3 0 0\n0 0 0 1\n1 0 0 1\n0 1 0 1\n")
+    with pytest.raises(ReadError, match="4OFF files .* are not supported"):
+        io.read_points(tmp_path / "h.off")
+
+
 @pytest.mark.parametrize("text, dim, has_normals", [
     ("0 0\n1 0\n0 1\n", 2, False),
     ("x,y\n0,0\n1,0\n0,1\n", 2, False),

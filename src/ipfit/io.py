@@ -148,8 +148,9 @@ def write_points(path: str | os.PathLike, points: ArrayLike, normals: ArrayLike 
     Parameters
     ----------
     path : str or path
-        ``.ply`` (x, y, z [, nx, ny, nz] as doubles; 2D points get z = 0 and a comment so
-        that ipfit reads them back as 2D), ``.csv`` (header ``x,y[,z][,nx,ny[,nz]]``),
+        ``.ply`` (x, y, z [, nx, ny, nz] as doubles), ``.obj`` (``v`` and ``vn`` lines),
+        ``.off`` (OFF, or NOFF with normals); in these three 2D points get z = 0 and a
+        comment so that ipfit reads them back as 2D. ``.csv`` (header ``x,y[,z][,nx,ny[,nz]]``),
         ``.xyz``/``.txt`` (space separated), ``.npy`` (one array, normals as extra
         columns) or ``.npz`` (arrays ``points`` and ``normals``).
     points : (N, D) array
@@ -533,18 +534,28 @@ def _read_trimesh(path: Path, raw: bytes, kind: str) -> _Raw:
     return _Raw(np.concatenate(points), nrm, np.concatenate(faces) if faces else None)
 
 
-def _off_check_counts(path: Path, raw: bytes) -> None:
-    """trimesh reads a truncated face list silently: compare with the counts line."""
+_OFF_KEYWORD = re.compile(r"^(ST)?(C)?(N)?(4)?(n)?OFF(?=\s|$)")
+
+
+def _off_layout(path: Path, raw: bytes) -> tuple[bool, list[str]]:
+    """Check an OFF file's header and counts (trimesh reads a truncated face list silently).
+
+    Returns whether the vertex lines carry normals (NOFF: x y z nx ny nz ...) and the vertex lines.
+    """
     text = raw.decode("utf-8", "replace")
     lines = [ln.split("#", 1)[0].strip() for ln in text.splitlines()]
     lines = [ln for ln in lines if ln]
-    if not lines or not re.match(r"^C?N?OFF", lines[0]):
-        raise ReadError(f"{path}: not an OFF file (the first line should be 'OFF').")
-    rest = lines[0][3:].split() if lines[0] not in ("OFF", "COFF") else []
+    match = _OFF_KEYWORD.match(lines[0]) if lines else None
+    if match is None:
+        raise ReadError(f"{path}: not an OFF file (the first line should be 'OFF', or 'NOFF' with normals).")
+    if match.group(4) or match.group(5):
+        raise ReadError(f"{path}: {match.group(0)} files (homogeneous or n-dimensional vertices) are not supported. "
+                        "Convert it to a plain 3D OFF or PLY.")
+    rest = lines[0][match.end():].split()
     body = lines[1:]
     if not rest:
         if not body:
-            raise ReadError(f"{path}: truncated: no vertex/face counts after 'OFF'.")
+            raise ReadError(f"{path}: truncated: no vertex/face counts after '{match.group(0)}'.")
         rest, body = body[0].split(), body[1:]
     try:
         nv, nf = int(rest[0]), int(rest[1])
@@ -553,11 +564,31 @@ def _off_check_counts(path: Path, raw: bytes) -> None:
     if len(body) < nv + nf:
         raise ReadError(f"{path}: truncated: the header announces {nv} vertices and {nf} faces "
                         f"but only {len(body)} data lines follow.")
+    return bool(match.group(3)), body[:nv]
+
+
+def _written_2d(raw: bytes, data: _Raw) -> _Raw:
+    """2D points written by ipfit to a 3D-only format (z = 0 and a comment) come back as 2D."""
+    if _IPFIT_2D.encode() not in raw[:200] or np.any(data.points[:, 2]):
+        return data
+    return data._replace(points=data.points[:, :2], normals=None if data.normals is None else data.normals[:, :2])
+
+
+def _read_obj(path: Path, raw: bytes) -> _Raw:
+    return _written_2d(raw, _read_trimesh(path, raw, "obj"))
 
 
 def _read_off(path: Path, raw: bytes) -> _Raw:
-    _off_check_counts(path, raw)
-    return _read_trimesh(path, raw, "off")
+    with_normals, vertex_lines = _off_layout(path, raw)
+    data = _read_trimesh(path, raw, "off")
+    if not with_normals:
+        return _written_2d(raw, data)
+    try:
+        normals = np.array([ln.split()[3:6] for ln in vertex_lines], dtype=np.float64)
+    except ValueError:
+        raise ReadError(f"{path}: NOFF vertex lines need x y z nx ny nz numbers; some are missing or "
+                        "not numbers.") from None
+    return _written_2d(raw, data._replace(normals=normals))
 
 
 # -- text tables ---------------------------------------------------------------------------------
@@ -787,11 +818,40 @@ def _write_npz(path: Path, pts: NDArray, nrm: NDArray | None, binary: bool) -> N
         np.savez_compressed(fh, **arrays)
 
 
+def _lines_text(header: list[str], rows: list[tuple[str, NDArray]]) -> str:
+    """Text of a header then, for each (prefix, table), one line per table row."""
+    buffer = _io.StringIO()
+    buffer.write("".join(line + "\n" for line in header))
+    for prefix, table in rows:
+        fmt = " ".join(["%.17g"] * table.shape[1])
+        np.savetxt(buffer, table, fmt=f"{prefix} {fmt}" if prefix else fmt)
+    return buffer.getvalue()
+
+
+def _as_3d(pts: NDArray) -> NDArray:
+    return pts if pts.shape[1] == 3 else np.column_stack([pts, np.zeros(len(pts))])
+
+
+def _comments(dim: int, mark: str) -> list[str]:
+    return [f"{mark} written by ipfit"] + ([f"{mark} {_IPFIT_2D}"] if dim == 2 else [])
+
+
+def _write_obj(path: Path, pts: NDArray, nrm: NDArray | None, binary: bool) -> None:
+    rows = [("v", _as_3d(pts))] + ([("vn", _as_3d(nrm))] if nrm is not None else [])
+    write_text_atomic(path, _lines_text(_comments(pts.shape[1], "#"), rows))
+
+
+def _write_off(path: Path, pts: NDArray, nrm: NDArray | None, binary: bool) -> None:
+    table = _as_3d(pts) if nrm is None else np.hstack([_as_3d(pts), _as_3d(nrm)])
+    header = ["OFF" if nrm is None else "NOFF"] + _comments(pts.shape[1], "#") + [f"{len(pts)} 0 0"]
+    write_text_atomic(path, _lines_text(header, [("", table)]))
+
+
 _IMAGE_SUFFIXES = (".png", ".gif", ".bmp", ".tif", ".tiff", ".jpg", ".jpeg", ".webp", ".pgm", ".pbm", ".ppm")
 
 _READERS: dict[str, Callable[[Path, bytes], _Raw]] = {
     ".ply": _read_ply,
-    ".obj": lambda path, raw: _read_trimesh(path, raw, "obj"),
+    ".obj": _read_obj,
     ".off": _read_off,
     ".stl": lambda path, raw: _read_trimesh(path, raw, "stl"),
     ".xyz": _read_text,
@@ -801,7 +861,7 @@ _READERS: dict[str, Callable[[Path, bytes], _Raw]] = {
     ".npz": _read_npz,
     **{suffix: _read_image for suffix in _IMAGE_SUFFIXES},
 }
-_WRITERS = {".ply": _write_ply, ".csv": _write_csv, ".xyz": _write_xyz, ".txt": _write_xyz,
+_WRITERS = {".ply": _write_ply, ".obj": _write_obj, ".off": _write_off, ".csv": _write_csv, ".xyz": _write_xyz, ".txt": _write_xyz,
             ".npy": _write_npy, ".npz": _write_npz}
 _FORMAT_NAMES = {".ply": "PLY", ".obj": "OBJ", ".off": "OFF", ".stl": "STL", ".xyz": "XYZ text", ".txt": "text",
                  ".csv": "CSV", ".npy": "NPY", ".npz": "NPZ", **{s: "image" for s in _IMAGE_SUFFIXES}}

@@ -9,11 +9,11 @@ from pathlib import Path
 from ._common import positive_int
 
 NAME = "normals"
-HELP = "write a point file's normals (or estimated ones) to a PLY/CSV/XYZ/NPY file"
+HELP = "write a point file's normals (or estimated ones) to a PLY/OBJ/OFF/CSV/XYZ/NPY file"
 DESCRIPTION = """\
 Read INPUT (a point file: PLY, OBJ, OFF, STL, XYZ/TXT/CSV, NPY/NPZ, or a silhouette image; or the
 name of a bundled dataset, see `ipfit datasets`) and write its points with normals to OUT (format
-by extension: .ply, .csv, .xyz, .txt, .npy, .npz), e.g. to look at them in MeshLab or CloudCompare.
+by extension: .ply, .obj, .off, .csv, .xyz, .txt, .npy, .npz), e.g. to look at them in MeshLab or CloudCompare.
 
 The normals are the file's own (for meshes without vertex normals: area-weighted from the faces;
 for images: outward normals of the traced boundary). With --estimate, or when the file has none,
@@ -30,7 +30,7 @@ _OFF_LINE = 30.0  # degrees: report estimated normals whose line differs more th
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("input", metavar="INPUT", help="point file or bundled dataset name")
     parser.add_argument("-o", "--output", metavar="OUT", required=True,
-                        help="output file: .ply (default binary), .csv, .xyz, .txt, .npy or .npz")
+                        help="output file: .ply (default binary), .obj, .off, .csv, .xyz, .txt, .npy or .npz")
     parser.add_argument("--estimate", action="store_true",
                         help="estimate the normals (and compare them with the file's) instead of copying them")
     parser.add_argument("--k", type=positive_int, metavar="K",
