@@ -818,33 +818,25 @@ def _write_npz(path: Path, pts: NDArray, nrm: NDArray | None, binary: bool) -> N
         np.savez_compressed(fh, **arrays)
 
 
-def _lines_text(header: list[str], rows: list[tuple[str, NDArray]]) -> str:
-    """Text of a header then, for each (prefix, table), one line per table row."""
-    buffer = _io.StringIO()
-    buffer.write("".join(line + "\n" for line in header))
-    for prefix, table in rows:
-        fmt = " ".join(["%.17g"] * table.shape[1])
-        np.savetxt(buffer, table, fmt=f"{prefix} {fmt}" if prefix else fmt)
-    return buffer.getvalue()
-
-
 def _as_3d(pts: NDArray) -> NDArray:
     return pts if pts.shape[1] == 3 else np.column_stack([pts, np.zeros(len(pts))])
 
 
-def _comments(dim: int, mark: str) -> list[str]:
-    return [f"{mark} written by ipfit"] + ([f"{mark} {_IPFIT_2D}"] if dim == 2 else [])
+def _comments(dim: int) -> list[str]:
+    return ["# written by ipfit"] + ([f"# {_IPFIT_2D}"] if dim == 2 else [])
 
 
 def _write_obj(path: Path, pts: NDArray, nrm: NDArray | None, binary: bool) -> None:
-    rows = [("v", _as_3d(pts))] + ([("vn", _as_3d(nrm))] if nrm is not None else [])
-    write_text_atomic(path, _lines_text(_comments(pts.shape[1], "#"), rows))
+    buffer = _io.StringIO()
+    buffer.write("".join(line + "\n" for line in _comments(pts.shape[1])))
+    for prefix, table in [("v", pts)] + ([("vn", nrm)] if nrm is not None else []):
+        np.savetxt(buffer, _as_3d(table), fmt=prefix + " %.17g %.17g %.17g")
+    write_text_atomic(path, buffer.getvalue())
 
 
 def _write_off(path: Path, pts: NDArray, nrm: NDArray | None, binary: bool) -> None:
-    table = _as_3d(pts) if nrm is None else np.hstack([_as_3d(pts), _as_3d(nrm)])
-    header = ["OFF" if nrm is None else "NOFF"] + _comments(pts.shape[1], "#") + [f"{len(pts)} 0 0"]
-    write_text_atomic(path, _lines_text(header, [("", table)]))
+    header = ["OFF" if nrm is None else "NOFF"] + _comments(pts.shape[1]) + [f"{len(pts)} 0 0"]
+    write_text_atomic(path, _table_text(_as_3d(pts), None if nrm is None else _as_3d(nrm), " ", "\n".join(header)))
 
 
 _IMAGE_SUFFIXES = (".png", ".gif", ".bmp", ".tif", ".tiff", ".jpg", ".jpeg", ".webp", ".pgm", ".pbm", ".ppm")

@@ -20,6 +20,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ._validation import as_faces, as_points, check_positive, error
+from .io import _unit_rows, vertex_normals_from_faces
 
 __all__ = ["winding_number", "outward_vertices", "DEFAULT_STEP_FRACTION"]
 
@@ -104,8 +105,6 @@ def outward_vertices(vertices: ArrayLike, faces: ArrayLike, normals: ArrayLike |
     >>> bool(outward_vertices(box.vertices, box.faces[:, ::-1]).any())  # faces inside out
     False
     """
-    from .io import vertex_normals_from_faces
-
     verts = as_points(vertices, "vertices", dims=(3,))
     tri = as_faces(faces, len(verts))
     if normals is None:
@@ -115,8 +114,7 @@ def outward_vertices(vertices: ArrayLike, faces: ArrayLike, normals: ArrayLike |
         if nrm.shape != verts.shape:
             raise error("normals", f"shape {verts.shape} to match the vertices", f"shape {nrm.shape}",
                         "Pass one normal per vertex, or None for the faces' normals.")
-        length = np.linalg.norm(nrm, axis=1, keepdims=True)
-        nrm = nrm / np.where(length > 0, length, np.nan)
+        nrm = _unit_rows(nrm)
     if step is None:
         step = DEFAULT_STEP_FRACTION * float(np.linalg.norm(np.ptp(verts, axis=0)))
     else:

@@ -95,27 +95,28 @@ def run(args: argparse.Namespace) -> int:
             print(f"disagree with {source}: {flipped:,} of {agreement.compared:,} point the other way "
                   f"({100 * flipped / max(agreement.compared, 1):.2f}%); {off:,} lines off by more than "
                   f"{_OFF_LINE:.0f}°; median angle {agreement.median_angle:.2f}°")
-            if args.outward:
-                _report_outward(points, faces, reference, agreement, source)
     elif args.k is not None:
         print("note: --k only matters with --estimate")
-    if args.outward and not (args.estimate and reference is not None and faces is not None and dim == 3):
-        print("note: --outward only matters with --estimate on a 3D mesh (faces) that has reference normals")
+    if args.outward:
+        if args.estimate and reference is not None and faces is not None and dim == 3:
+            _report_outward(points, faces, reference, normals, source)
+        else:
+            print("note: --outward only matters with --estimate on a 3D mesh (faces) that has reference normals")
     io.write_points(out, points, normals, binary=not args.ascii)
     print(f"wrote {out} ({n:,} points with normals)")
     return 0
 
 
-def _report_outward(points, faces, reference, agreement, source) -> None:
-    if faces is None or points.shape[1] != 3:
-        return
+def _report_outward(points, faces, reference, estimated, source) -> None:
+    import numpy as np
+
     from ..solid import outward_vertices
 
     start = time.perf_counter()
-    outward = outward_vertices(points, faces, reference)
+    outward = outward_vertices(points, faces, reference)  # False where the reference is NaN
     seconds = time.perf_counter() - start
-    inward = int((~outward).sum())
-    flipped = int(agreement.flipped[outward].sum())
-    print(f"{inward:,} of {len(points):,} normals from {source} do not point out of the mesh's solid "
-          f"(it passes through itself or is open there; {seconds:.1f} s); over the other {int(outward.sum()):,}, "
-          f"{flipped:,} estimated normals point the other way ({100 * flipped / max(int(outward.sum()), 1):.2f}%)")
+    kept = int(outward.sum())
+    flipped = int((outward & (np.einsum("ij,ij->i", estimated, reference) < 0)).sum())
+    print(f"{len(points) - kept:,} of {len(points):,} normals from {source} do not point out of the mesh's solid "
+          f"(it passes through itself or is open there; {seconds:.1f} s); over the other {kept:,}, "
+          f"{flipped:,} estimated normals point the other way ({100 * flipped / max(kept, 1):.2f}%)")
