@@ -27,6 +27,7 @@ __all__ = [
     "check_int",
     "check_choice",
     "check_rng",
+    "check_enough_points",
 ]
 
 
@@ -174,3 +175,13 @@ def check_rng(rng: Any) -> np.random.Generator:
         except ValueError:
             raise error("rng", "None, a non-negative int seed or a numpy Generator", _describe(rng)) from None
     raise error("rng", "None, a non-negative int seed or a numpy Generator", _describe(rng))
+
+
+def check_enough_points(n_points: int, dim: int, degree: int, name: str = "points") -> None:
+    """Refuse a degree whose polynomial has more coefficients than there are points."""
+    from .basis import n_coefficients
+
+    d = n_coefficients(dim, degree)
+    if n_points < d:
+        raise error(name, f"at least {d} points for a degree-{degree} {dim}D polynomial ({d} coefficients)",
+                    f"{n_points} points", "Pass more points or lower the degree.")
