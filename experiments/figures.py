@@ -71,7 +71,7 @@ def add_comparisons(result: dict, points: np.ndarray, normals: np.ndarray | None
     top = Normalization(result["normalization"]["center"], result["normalization"]["scale"])
     out = dict(result)
     comparisons = {}
-    for name, fit in (("lstsq", lambda: ipfit.fit_lstsq(points, degree, normals)),
+    for name, fit in (("lstsq", lambda: ipfit.fit_lstsq(points, normals, degree)),
                       ("3l", lambda: ipfit.fit_3l(points, normals, degree))):
         poly = fit()
         entry = {"degree": degree, "coefficients": [float(c) for c in poly.coefficients]}

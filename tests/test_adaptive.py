@@ -67,12 +67,12 @@ def test_geometric_rule_never_selects_an_unclean_degree_when_a_clean_one_exists(
     nrm = np.column_stack([tang[:, 1], -tang[:, 0]])
     paper = fit_adaptive(pts, nrm, method="3l", max_degree=10, rule="paper")
     geometric = fit_adaptive(pts, nrm, method="3l", max_degree=10, rule="geometric")
-    quality = {d.degree: d.details["quality"] for d in geometric.degrees}
-    clean = {g for g, q in quality.items() if q["n_spurious"] == 0 and q["closed"]}
+    quality = {d.degree: d.quality for d in geometric.degrees}
+    clean = {g for g, q in quality.items() if q.n_spurious == 0 and q.closed}
     assert clean, "some degree of 3L on this blob is clean"
     assert geometric.selected_degree in clean
-    chosen = quality[geometric.selected_degree]["f_score"]
-    assert chosen == max(quality[g]["f_score"] for g in clean)
+    chosen = quality[geometric.selected_degree].f_score
+    assert chosen == max(quality[g].f_score for g in clean)
     if paper.selected_degree in clean:
         assert geometric.selected_degree == paper.selected_degree
 
@@ -100,20 +100,60 @@ def test_unknown_method_lists_the_valid_ones():
         fit_adaptive(shape.points, shape.normals, method="simulated-annealing")
 
 
-def test_interrupt_keeps_finished_degrees(monkeypatch):
+def test_interrupt_keeps_finished_degrees():
     shape = synthetic.ellipse(200)
-    import ipfit.adaptive as adaptive
-
-    real = adaptive.fit_linear
     calls = []
 
-    def interrupting(points, normals, degree, method, **params):
+    def interrupting(points, normals, degree):
         calls.append(degree)
         if degree == 4:
             raise KeyboardInterrupt
-        return real(points, normals, degree, method, **params)
+        return ipfit.fit_3l(points, normals, degree)
 
-    monkeypatch.setattr(adaptive, "fit_linear", interrupting)
-    result = fit_adaptive(shape.points, shape.normals, method="3l")
-    assert result.reason == "interrupted" and [d.degree for d in result.degrees] == [2]
-    assert result.selected_degree == 2
+    result = fit_adaptive(shape.points, shape.normals, method=interrupting)
+    assert result.reason == "interrupted" and [d.degree for d in result.degrees] == [2] and calls == [2, 4]
+    assert result.selected_degree == 2 and not result.success and "interrupted" in result.message
+
+
+def test_fit_adaptive_and_refine_take_no_params():
+    import inspect
+
+    for func in (ipfit.fit_adaptive, ipfit.refine):
+        kinds = {p.kind for p in inspect.signature(func).parameters.values()}
+        assert inspect.Parameter.VAR_KEYWORD not in kinds and inspect.Parameter.VAR_POSITIONAL not in kinds
+
+
+def test_an_option_for_a_method_without_search_is_an_error():
+    shape = synthetic.circle(50)
+    with pytest.raises(ipfit.InvalidInputError, match="options: expected None for method '3l'"):
+        fit_adaptive(shape.points, shape.normals, method="3l", options=ipfit.SearchOptions(iterations=3))
+    with pytest.warns(DeprecationWarning), pytest.raises(ipfit.InvalidInputError, match="options: expected None"):
+        fit_adaptive(shape.points, shape.normals, method="3l", far_weight=0.5)
+    with pytest.raises(ipfit.InvalidInputError, match="chi: expected a setting used by method 'de'"):
+        fit_adaptive(shape.points, shape.normals, method="de", options=ipfit.SearchOptions(chi=0.7))
+    with pytest.raises(ipfit.InvalidInputError, match="progress: expected a callable"):
+        fit_adaptive(shape.points, shape.normals, method="3l", progress=5)
+
+
+def test_a_fixed_degree_says_so():
+    shape = synthetic.ellipse(100)
+    result = fit_adaptive(shape.points, shape.normals, method="3l", min_degree=4, max_degree=4)
+    assert result.reason == "fixed" and result.message == "fixed degree 4" and result.success
+
+
+def test_every_result_type_speaks_scipys_vocabulary(rng):
+    from ipfit.optimize import DifferentialEvolution
+
+    shape = synthetic.ellipse(60, a=2.0, b=1.0)
+    opts = ipfit.RECOMMENDED.replace(iterations=3, population_size=12)
+    refined = ipfit.refine(shape.points, shape.normals, 2, options=opts, rng=rng)
+    adaptive = fit_adaptive(shape.points, shape.normals, options=opts, max_degree=4, rng=rng)
+    solver = DifferentialEvolution(lambda x: np.sum(x**2, axis=1), rng.normal(size=(8, 3)), maxiter=2, rng=rng).solve()
+    for res in (solver, refined, adaptive, adaptive.degrees[0]):
+        assert isinstance(res.x, np.ndarray) and np.isfinite(res.fun)
+        assert isinstance(res.nit, int) and isinstance(res.nfev, int) and res.nfev > 0
+        assert res.success is True and isinstance(res.message, str) and res.message
+    assert adaptive.x is adaptive.polynomial.coefficients
+    assert adaptive.fun == pytest.approx(adaptive.at_degree(adaptive.selected_degree).distance)
+    assert adaptive.nit == len(adaptive.degrees)
+    assert adaptive.nfev == sum(d.nfev for d in adaptive.degrees)

@@ -46,9 +46,9 @@ def assert_obeys_its_rule(data):
     assert data["selected_degree"] == degrees[index] == data["degree"]
 
 
-def test_fit_3d_file_with_refinement_writes_a_mesh(tmp_path, shared_data):
+def test_fit_3d_file_with_refinement_writes_a_mesh(tmp_path):
     prefix = tmp_path / "bunny"
-    code = main(["fit", str(shared_data / "3d" / "bun_zipper_res4.ply"), "-o", str(prefix), "--method", "de+polish",
+    code = main(["fit", "bunny_res4", "-o", str(prefix), "--method", "de+polish",
                  "--max-degree", "4", "--iterations", "5", "--population", "40", "--quiet", "--seed", "3"])
     assert code == 0
     assert _outputs(tmp_path) == ["bunny.json", "bunny.ply", "bunny.png"]
@@ -66,21 +66,29 @@ def test_fixed_degree(tmp_path):
     assert data["selected_degree"] == 4 and [d["degree"] for d in data["degrees"]] == [4]
 
 
-def test_paper_flag_runs_the_papers_exact_pipeline(tmp_path):
-    code = main(["fit", "airplane", "-o", str(tmp_path / "p"), "--paper", "--iterations", "10", "--max-degree", "6",
-                 "--quiet", "--no-picture", "--no-zero-set"])
+def test_paper_flag_is_the_paper_preset_bit_for_bit(tmp_path):
+    code = main(["fit", "airplane", "-o", str(tmp_path / "p"), "--paper", "--quiet", "--no-picture", "--no-zero-set"])
     assert code == 0
     data = json.loads((tmp_path / "p.json").read_text())
     assert data["adaptive"]["rule"] == "paper" and data["adaptive"]["far_weight"] == 0.0
     assert data["method"] == "de"
     assert_obeys_its_rule(data)
-    from ipfit.refine import refine
-
     points, normals = ipfit.load_dataset("airplane")
-    degree = data["degrees"][0]["degree"]
-    same = refine(points, normals, degree, method="de", iterations=10, rng=0, search_space="coefficients",
-                  seeds=["lstsq", "3l"])
-    assert data["degrees"][0]["coefficients"] == same.polynomial.coefficients.tolist()
+    same = ipfit.fit_adaptive(points, normals, method=ipfit.PAPER_METHOD, options=ipfit.PAPER, rule=ipfit.PAPER_RULE,
+                              rng=0)
+    assert [d["coefficients"] for d in data["degrees"]] == [d.x.tolist() for d in same.degrees]
+    # Pinned: the per-degree coefficients of the paper's pipeline before the options refactor.
+    golden = json.loads((Path(__file__).parent / "data" / "paper_airplane_golden.json").read_text())
+    assert [d["degree"] for d in data["degrees"]] == golden["degrees"]
+    assert data["selected_degree"] == golden["selected_degree"]
+    for ours, pinned in zip(data["degrees"], golden["coefficients"]):
+        assert ours["coefficients"] == pytest.approx(pinned, rel=1e-9, abs=1e-12)
+
+
+def test_paper_flag_refuses_the_options_it_fixes(tmp_path, capsys):
+    code = main(["fit", "airplane", "-o", str(tmp_path / "p"), "--paper", "--method", "pso", "--quiet"])
+    assert code == 2 and "--paper: it fixes --method" in capsys.readouterr().err
+    assert not list(tmp_path.iterdir())
 
 
 @pytest.mark.parametrize("argv,message", [
@@ -92,6 +100,7 @@ def test_paper_flag_runs_the_papers_exact_pipeline(tmp_path):
     (["fit", "boot", "--iterations", "0"], "argument --iterations: expected a whole number >= 1"),
     (["fit", "airplane", "--degree", "30"], "--degree: degree 30 needs at least 496 points, the input has 200"),
     (["fit", "airplane", "--max-degree", "24", "--method", "3l"], "max_degree: expected at most 18 for 200 points"),
+    (["fit", "airplane", "--method", "3l", "--far-term-weight", "0.5"], "--far-term-weight: method '3l' is a linear fit"),
 ])
 def test_bad_input_exits_2_with_one_line_and_no_output(tmp_path, capsys, argv, message):
     prefix = tmp_path / "o" / "x"

@@ -123,8 +123,8 @@ def test_rotation_translation_scale_give_the_same_zero_set(dim, method, rng):
 @pytest.mark.parametrize("dim", [2, 3])
 def test_classic_least_squares_is_translation_and_scale_invariant(dim, rng):
     pts, nrm = _blob(dim, rng)
-    before = ipfit.fit_lstsq(pts, 4)
-    after = ipfit.fit_lstsq(pts * 3.7 - 12.0, 4)
+    before = ipfit.fit_lstsq(pts, degree=4)
+    after = ipfit.fit_lstsq(pts * 3.7 - 12.0, degree=4)
     np.testing.assert_allclose(after.taubin_distance(pts * 3.7 - 12.0) / 3.7, before.taubin_distance(pts), rtol=1e-6, atol=1e-9)
 
 
@@ -174,21 +174,38 @@ GOOD = synthetic.circle(50)
 
 @pytest.mark.parametrize("call,match", [
     (lambda: ipfit.fit_3l(np.zeros((10, 4)), np.ones((10, 4)), 2), r"points: expected an array of shape \(N, 2\) or \(N, 3\)"),
-    (lambda: ipfit.fit_lstsq(np.zeros(10), 2), r"points: expected an array of shape"),
-    (lambda: ipfit.fit_lstsq(GOOD.points[:10], 4), r"at least 15 points .* got 10 points. Pass more points or lower the degree"),
-    (lambda: ipfit.fit_lstsq(np.where(np.arange(50)[:, None] == 3, np.nan, GOOD.points), 2), r"finite coordinates, got 1 rows with NaN or inf \(first at row 3\)"),
-    (lambda: ipfit.fit_lstsq(np.where(np.arange(50)[:, None] == 7, np.inf, GOOD.points), 2), r"NaN or inf \(first at row 7\)"),
+    (lambda: ipfit.fit_lstsq(np.zeros(10), None, 2), r"points: expected an array of shape"),
+    (lambda: ipfit.fit_lstsq(GOOD.points[:10], None, 4), r"at least 15 points .* got 10 points. Pass more points or lower the degree"),
+    (lambda: ipfit.fit_lstsq(np.where(np.arange(50)[:, None] == 3, np.nan, GOOD.points), None, 2), r"finite coordinates, got 1 rows with NaN or inf \(first at row 3\)"),
+    (lambda: ipfit.fit_lstsq(np.where(np.arange(50)[:, None] == 7, np.inf, GOOD.points), None, 2), r"NaN or inf \(first at row 7\)"),
     (lambda: ipfit.fit_3l(GOOD.points, None, 2), r"normals: expected .*required by fit_3l.* got None. Pass the file's normals or ipfit.estimate_normals"),
     (lambda: ipfit.fit_ridge(GOOD.points, np.zeros_like(GOOD.points), 2), r"non-zero normal vectors, got 50 zero-length normals"),
     (lambda: ipfit.fit_gradient_one(GOOD.points, GOOD.normals[:20], 2), r"normals: expected shape \(50, 2\) to match the points"),
     (lambda: ipfit.fit_3l(GOOD.points, GOOD.normals, 0), r"degree: expected an integer >= 1, got 0"),
-    (lambda: ipfit.fit_lstsq(GOOD.points, 2.5), r"degree: expected an integer >= 1"),
+    (lambda: ipfit.fit_lstsq(GOOD.points, None, 2.5), r"degree: expected an integer >= 1"),
     (lambda: ipfit.fit_3l(GOOD.points, GOOD.normals, 2, c=-1), r"c: expected a number > 0"),
+    (lambda: ipfit.fit_3l(GOOD.points, GOOD.normals, 2, c=1e300), r"c: expected an offset in \(0, 10\]"),
+    (lambda: ipfit.fit_ridge(GOOD.points, GOOD.normals, 2, kappa=1e300), r"kappa: expected a number in \[0, 1e\+12\]"),
+    (lambda: ipfit.fit_linear(GOOD.points, GOOD.normals, 2, "lstsq", c=0.1), r"c: expected a parameter of the 'lstsq' fit"),
     (lambda: ipfit.fit_linear(GOOD.points, GOOD.normals, 2, method="nope"), r"method: expected one of 'lstsq', 'taubin', '3l', 'ridge', 'gradient_one', '3l-far'"),
-    (lambda: ipfit.fit_lstsq([["a", "b"]], 2), r"points: expected an \(N, 2\) or \(N, 3\) array of numbers"),
+    (lambda: ipfit.fit_lstsq([["a", "b"]], None, 2), r"points: expected an \(N, 2\) or \(N, 3\) array of numbers"),
 ])
 def test_bad_input_names_the_problem_and_the_fix(call, match):
     with pytest.raises(ValueError, match=match) as info:
         call()
     assert isinstance(info.value, ipfit.InvalidInputError)
     assert "\n" not in str(info.value)
+
+
+def test_all_fits_take_points_normals_degree_and_old_names_still_work():
+    shape = synthetic.ellipse(60)
+    new = ipfit.fit_lstsq(shape.points, shape.normals, 2)
+    with pytest.warns(DeprecationWarning, match="points, normals, degree"):
+        old = ipfit.fit_lstsq(shape.points, 2, normals=shape.normals)
+    np.testing.assert_array_equal(new.coefficients, old.coefficients)
+    with pytest.warns(DeprecationWarning, match="far_row_weight"):
+        renamed = ipfit.fit_3l(shape.points, shape.normals, 2, far_weight=1e-3)
+    np.testing.assert_array_equal(renamed.coefficients,
+                                  ipfit.fit_3l(shape.points, shape.normals, 2, far_row_weight=1e-3).coefficients)
+    far = ipfit.fit_linear(shape.points, shape.normals, 2, "3l-far")
+    assert far.info["far_row_weight"] == ipfit.linear.DEFAULT_FAR_ROW_WEIGHT and far.info["far_samples"] > 0

@@ -52,7 +52,7 @@ def test_distinct_indices(rng):
 
 def test_one_de_step_replayed_by_hand(seed):
     pop = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 1.0], [0.5, -0.5, 0.0]])
-    de = DifferentialEvolution(sphere, pop, F=0.6, CR=0.5, rng=seed, maxiter=1)
+    de = DifferentialEvolution(sphere, pop, mutation=0.6, recombination=0.5, rng=seed, maxiter=1)
     de.step()
     # Replay the documented draws with an identical generator and apply DE/rand/1/bin by hand.
     ref = np.random.default_rng(seed)
@@ -178,12 +178,14 @@ def test_nan_values_lose(rng):
 
 
 def test_solver_errors(rng):
-    with pytest.raises(InvalidInputError, match="population"):
+    with pytest.raises(InvalidInputError, match="init"):
         DifferentialEvolution(sphere, np.zeros((3, 2)))
-    with pytest.raises(InvalidInputError, match="F"):
+    with pytest.raises(InvalidInputError, match="mutation"):
+        DifferentialEvolution(sphere, np.zeros((5, 2)), mutation=0.0)
+    with pytest.raises(InvalidInputError, match="recombination"):
+        DifferentialEvolution(sphere, np.zeros((5, 2)), recombination=1.5)
+    with pytest.warns(DeprecationWarning, match="F="), pytest.raises(InvalidInputError, match="mutation"):
         DifferentialEvolution(sphere, np.zeros((5, 2)), F=0.0)
-    with pytest.raises(InvalidInputError, match="CR"):
-        DifferentialEvolution(sphere, np.zeros((5, 2)), CR=1.5)
     with pytest.raises(InvalidInputError, match="chi"):
         ParticleSwarm(sphere, np.zeros((5, 2)), chi=1.2)
     with pytest.raises(InvalidInputError, match="func"):

@@ -5,10 +5,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ipfit import ImplicitPolynomial, InvalidInputError, Normalization, fit_3l
+from ipfit import (PAPER, RECOMMENDED, ImplicitPolynomial, InvalidInputError, Normalization, SearchOptions, fit_3l,
+                   fit_linear)
 from ipfit.datasets import synthetic
 from ipfit.objective import measures
 from ipfit.refine import REFINE_METHODS, RefineResult, refine
+
+
+def opts(**changes):
+    return RECOMMENDED.replace(**changes)
 
 
 def wobbly(n=160, rng=None):
@@ -32,8 +37,9 @@ def alignment(a, b):
 @pytest.mark.parametrize("method", ["de", "pso"])
 def test_converges_to_an_exact_conic_without_seeds(seed, method):
     shape = synthetic.ellipse(30, 2.0, 1.0, center=(0.3, -0.2))
-    res = refine(shape.points, shape.normals, 2, method, seeds=[], iterations=300, rng=seed)
-    assert res.best_seed is None and res.seed_distances == {}
+    res = refine(shape.points, shape.normals, 2, method, options=opts(start_fits=(), iterations=300, far_term_weight=0.0),
+                 rng=seed)
+    assert res.best_start is None and dict(res.start_distances) == {}
     assert res.distance < 1e-4
     # Same zero set as the exact ellipse: compare in user coordinates at a few points.
     probe = np.array([[2.3, -0.2], [0.3, 0.8], [-1.7, -0.2], [0.3, -1.2]])
@@ -42,7 +48,8 @@ def test_converges_to_an_exact_conic_without_seeds(seed, method):
 
 def test_converges_to_an_exact_quadric_without_seeds(seed):
     shape = synthetic.ellipsoid(60, axes=(1.5, 1.0, 0.7), center=(0.1, 0.2, 0.3))
-    res = refine(shape.points, shape.normals, 2, "pso", seeds=[], iterations=300, rng=seed)
+    res = refine(shape.points, shape.normals, 2, "pso", options=opts(start_fits=(), iterations=300, far_term_weight=0.0),
+                 rng=seed)
     assert res.distance < 1e-4
     exact = shape.polynomial.coefficients
     # Express the fit in user coordinates by sampling: both vanish on the data and agree in sign.
@@ -52,12 +59,16 @@ def test_converges_to_an_exact_quadric_without_seeds(seed):
 
 
 @pytest.mark.parametrize("method", REFINE_METHODS)
-def test_never_above_the_best_seed_and_result_contract(rng, method):
+def test_never_above_the_best_start_and_result_contract(rng, method):
     pts, nrm = wobbly(rng=rng)
-    res = refine(pts, nrm, 4, method, iterations=15, population=40, rng=rng, n_solutions=3)
+    res = refine(pts, nrm, 4, method, options=opts(iterations=15, population_size=40, n_solutions=3, far_term_weight=0.0),
+                 rng=rng)
     assert isinstance(res, RefineResult)
-    assert res.distance <= res.best_seed_distance
-    assert res.best_seed_distance == min(res.seed_distances.values())
+    # Independent reference: every start fit, fitted and measured here by the public functions.
+    best_linear = min(measures(fit_linear(pts, nrm, 4, m), pts, nrm).distance for m in ("3l", "ridge", "lstsq"))
+    assert res.distance <= best_linear * (1 + 1e-9)
+    np.testing.assert_array_equal(res.x, res.polynomial.coefficients)
+    assert res.fun == pytest.approx(res.distance, rel=1e-12)  # no far-field term: fun is the distance
     poly = res.polynomial
     assert isinstance(poly, ImplicitPolynomial) and poly.method == method and poly.degree == 4
     assert np.linalg.norm(poly.coefficients) == pytest.approx(1.0)
@@ -80,18 +91,31 @@ def test_never_above_the_best_seed_and_result_contract(rng, method):
     assert res.nfev > 0 and res.seconds > 0 and res.success
 
 
-def test_polish_improves_on_the_seeds(rng):
+def test_polish_improves_on_the_start_fits(rng):
     pts, nrm = wobbly(rng=rng)
-    res = refine(pts, nrm, 4, "de+polish", iterations=10, population=60, rng=rng)
-    assert res.distance < 0.8 * res.best_seed_distance  # about 0.55 under every seed tried
+    res = refine(pts, nrm, 4, "de+polish", options=opts(iterations=10, population_size=60, far_term_weight=0.0), rng=rng)
+    best_3l = measures(fit_3l(pts, nrm, 4), pts, nrm).distance
+    assert res.distance < 0.8 * min(res.best_start_value, best_3l)  # about 0.55 under every seed tried
+
+
+def test_a_search_that_does_nothing_returns_the_best_start_fit(rng):
+    pts, nrm = wobbly(rng=rng)
+    # A swarm of exactly the two start fits that never moves.
+    res = refine(pts, nrm, 4, "pso", options=opts(iterations=0, population_size=2, start_fraction=1.0,
+                                                   start_fits=("3l", "lstsq"), far_term_weight=0.0), rng=rng)
+    fits = {m: fit_linear(pts, nrm, 4, m) for m in ("3l", "lstsq")}
+    best = min(fits, key=lambda m: measures(fits[m], pts, nrm).distance)
+    assert res.best_start == best and res.nit == 0 and res.success
+    assert res.distance == pytest.approx(measures(fits[best], pts, nrm).distance, rel=1e-12)
+    assert "no candidate beat the best start fit" in res.message
 
 
 def test_fixed_rng_is_bit_reproducible(seed):
     pts, nrm = wobbly(rng=np.random.default_rng(seed))
-    kwargs = dict(iterations=12, population=40)
+    o = opts(iterations=12, population_size=40)
     for method in ("de+polish", "pso"):
-        a = refine(pts, nrm, 4, method, rng=seed, **kwargs)
-        b = refine(pts, nrm, 4, method, rng=np.random.default_rng(seed), **kwargs)
+        a = refine(pts, nrm, 4, method, options=o, rng=seed)
+        b = refine(pts, nrm, 4, method, options=o, rng=np.random.default_rng(seed))
         np.testing.assert_array_equal(a.polynomial.coefficients, b.polynomial.coefficients)
         np.testing.assert_array_equal(a.history, b.history)
         assert a.nfev == b.nfev
@@ -99,7 +123,8 @@ def test_fixed_rng_is_bit_reproducible(seed):
 
 def test_different_rng_similar_quality(seed):
     pts, nrm = wobbly(rng=np.random.default_rng(seed))
-    results = [refine(pts, nrm, 4, "de+polish", iterations=20, population=40, rng=seed + k) for k in range(3)]
+    results = [refine(pts, nrm, 4, "de+polish", options=opts(iterations=20, population_size=40), rng=seed + k)
+               for k in range(3)]
     histories = [r.history for r in results]
     assert not all(np.array_equal(histories[0], h) for h in histories[1:])
     d = np.array([r.distance for r in results])
@@ -108,31 +133,84 @@ def test_different_rng_similar_quality(seed):
 
 def test_invariant_to_the_users_units(seed):
     pts, nrm = wobbly(rng=np.random.default_rng(seed))
-    a = refine(pts, nrm, 4, "de+polish", iterations=8, population=30, rng=seed)
-    b = refine(pts * 1e-3, nrm, 4, "de+polish", iterations=8, population=30, rng=seed)
+    o = opts(iterations=8, population_size=30, far_term_weight=0.0)
+    a = refine(pts, nrm, 4, "de+polish", options=o, rng=seed)
+    b = refine(pts * 1e-3, nrm, 4, "de+polish", options=o, rng=seed)
     # Same normalised problem up to rounding: the seeds agree to rounding; the search, which
     # amplifies rounding differences, ends at the same quality.
-    for label, value in a.seed_distances.items():
-        assert b.seed_distances[label] == pytest.approx(value, rel=1e-8)
+    for label, value in a.start_distances.items():
+        assert b.start_distances[label] == pytest.approx(value, rel=1e-8)
     assert b.distance == pytest.approx(a.distance, rel=1e-3)
 
 
-def test_seeds_argument(rng):
+def test_starts_and_start_fits(rng):
     pts, nrm = wobbly(rng=rng)
-    seed_poly = fit_3l(pts, nrm, 4)
-    res = refine(pts, nrm, 4, "polish", seeds=[seed_poly])
-    assert list(res.seed_distances) == ["3l"]
-    assert res.best_seed_distance == pytest.approx(measures(seed_poly, pts, nrm).distance)
-    assert res.distance < res.best_seed_distance
-    by_name = refine(pts, nrm, 4, "de", seeds=["taubin", seed_poly.coefficients], iterations=3, population=12, rng=rng)
-    assert set(by_name.seed_distances) == {"taubin", "seed1"}
-    other = ImplicitPolynomial.from_coefficients(seed_poly.coefficients, 2, Normalization.identity(2))
-    with pytest.raises(InvalidInputError, match=r"seeds\[0\]"):
-        refine(pts, nrm, 4, seeds=[other])
-    with pytest.raises(InvalidInputError, match=r"seeds\[0\]"):
-        refine(pts, nrm, 4, seeds=[np.ones(3)])
-    with pytest.raises(InvalidInputError, match="seeds"):
-        refine(pts, nrm, 4, "polish", seeds=[])
+    start = fit_3l(pts, nrm, 4)
+    no_fits = opts(start_fits=(), far_term_weight=0.0)
+    res = refine(pts, nrm, 4, "polish", options=opts(start_fits=("3l",), far_term_weight=0.0), starts=[start])
+    assert set(res.start_distances) == {"3l#0", "3l#1"}
+    assert res.best_start_value == pytest.approx(measures(start, pts, nrm).distance)
+    assert res.distance < res.best_start_value
+    by_name = refine(pts, nrm, 4, "de", options=opts(start_fits=("taubin",), iterations=3, population_size=12,
+                                                      far_term_weight=0.0), starts=[start.coefficients], rng=rng)
+    assert set(by_name.start_distances) == {"taubin", "start0"}
+    other = ImplicitPolynomial.from_coefficients(start.coefficients, 2, Normalization.identity(2))
+    with pytest.raises(InvalidInputError, match=r"starts\[0\]"):
+        refine(pts, nrm, 4, options=no_fits, starts=[other])
+    with pytest.raises(InvalidInputError, match=r"starts\[0\]"):
+        refine(pts, nrm, 4, options=no_fits, starts=[np.ones(3)])
+    with pytest.raises(InvalidInputError, match="start_fits"):
+        refine(pts, nrm, 4, "polish", options=no_fits)
+
+
+def test_far_field_term_adds_the_3l_far_start_and_changes_fun(rng):
+    pts, nrm = wobbly(rng=rng)
+    res = refine(pts, nrm, 4, "de", options=opts(iterations=2, population_size=20), rng=rng)
+    assert "3l-far" in res.start_distances
+    assert res.fun >= res.distance  # the term is never negative
+    assert res.info["far_term_weight"] == RECOMMENDED.far_term_weight
+
+
+def test_deprecated_keywords_still_work(rng):
+    pts, nrm = wobbly(rng=rng)
+    with pytest.warns(DeprecationWarning, match="iterations"):
+        old = refine(pts, nrm, 4, "de", iterations=3, population=12, far_weight=0.0, rng=0)
+    new = refine(pts, nrm, 4, "de", options=opts(iterations=3, population_size=12, far_term_weight=0.0), rng=0)
+    np.testing.assert_array_equal(old.x, new.x)
+    with pytest.warns(DeprecationWarning, match="seeds"):
+        seeded = refine(pts, nrm, 4, "de", seeds=["lstsq"], iterations=1, population=8, rng=0)
+    assert set(seeded.start_distances) == {"lstsq", "3l-far"}
+
+
+@pytest.mark.parametrize("method, changes, name", [
+    ("de", {"chi": 0.7}, "chi"), ("pso", {"mutation": 0.5}, "mutation"), ("pso+polish", {"recombination": 0.5},
+                                                                         "recombination"),
+    ("de", {"polish_iterations": 10}, "polish_iterations"), ("polish", {"c1": 2.0}, "c1"),
+])
+def test_an_option_that_does_not_apply_is_an_error(method, changes, name):
+    pts, nrm = wobbly()
+    with pytest.raises(InvalidInputError, match=rf"^{name}: expected a setting used by method"):
+        refine(pts, nrm, 4, method, options=SearchOptions(**changes))
+
+
+def test_paper_preset_pins_the_papers_parameters():
+    resolved = PAPER.for_method("de")
+    assert resolved["mutation"] == 0.7 and resolved["recombination"] == 0.9 and resolved["iterations"] == 500
+    assert resolved["population_size"] is None and resolved["start_fraction"] == 0.1  # 4·d members, N/10 started
+    assert PAPER.start_fits == ("lstsq", "3l") and PAPER.search_space == "coefficients"
+    assert PAPER.far_term_weight == 0.0 and PAPER.dtype == "float64"
+
+
+def test_straight_line_and_plane_data_are_fitted():
+    # Axis-aligned: every monomial with y (or z) vanishes on the data; the search must cope.
+    x = np.linspace(-1, 1, 40)
+    line = np.column_stack([x, np.zeros_like(x)])
+    res = refine(line, np.tile([0.0, 1.0], (40, 1)), 2, options=opts(iterations=5), rng=0)
+    assert res.success and np.max(np.abs(res.polynomial(line))) < 1e-6 * np.max(np.abs(res.polynomial([[0, 1.0]])))
+    gx, gy = np.meshgrid(x[::4], x[::4])
+    plane = np.column_stack([gx.ravel(), gy.ravel(), np.zeros(gx.size)])
+    res = refine(plane, np.tile([0.0, 0.0, 1.0], (len(plane), 1)), 2, options=opts(iterations=5), rng=0)
+    assert res.success and np.max(np.abs(res.polynomial(plane))) < 1e-6 * np.max(np.abs(res.polynomial([[0, 0, 1.0]])))
 
 
 def test_callback_sees_every_iteration_and_can_stop(rng):
@@ -143,46 +221,62 @@ def test_callback_sees_every_iteration_and_can_stop(rng):
         stages.append((state.message, state.nit))
         assert np.linalg.norm(state.x) == pytest.approx(1.0) and np.isfinite(state.fun)
 
-    res = refine(pts, nrm, 4, "pso+polish", iterations=6, population=20, rng=rng, callback=record)
+    res = refine(pts, nrm, 4, "pso+polish", options=opts(iterations=6, population_size=20), rng=rng, callback=record)
     assert [n for s, n in stages if s == "pso"] == [1, 2, 3, 4, 5, 6]
     assert any(s == "polish" for s, _ in stages) and res.nit == 6
-    stop = refine(pts, nrm, 4, "de", iterations=50, population=20, rng=rng, callback=lambda s: s.nit >= 2)
+    stop = refine(pts, nrm, 4, "de", options=opts(iterations=50, population_size=20), rng=rng,
+                  callback=lambda s: s.nit >= 2)
     assert stop.nit == 2 and "callback" in stop.message
 
 
 def test_float32_screening(rng):
     pts, nrm = wobbly(rng=rng)
-    res = refine(pts, nrm, 4, "de+polish", iterations=10, population=30, rng=rng, dtype=np.float32)
-    assert res.distance <= res.best_seed_distance
+    res = refine(pts, nrm, 4, "de+polish", options=opts(iterations=10, population_size=30, dtype=np.float32), rng=rng)
+    assert res.fun <= res.best_start_value
     assert res.info["dtype"] == "float32"
 
 
 def test_search_in_raw_coefficients(rng):
     pts, nrm = wobbly(rng=rng)
-    res = refine(pts, nrm, 4, "de", iterations=10, population=30, rng=rng, search_space="coefficients")
-    assert res.distance <= res.best_seed_distance
+    res = refine(pts, nrm, 4, "de", options=opts(iterations=10, population_size=30, search_space="coefficients"),
+                 rng=rng)
+    assert res.fun <= res.best_start_value
 
 
 @pytest.mark.parametrize("kwargs, match", [
     ({"method": "ga"}, "method"),
-    ({"method": "de", "population": 3}, "population"),
-    ({"iterations": -1}, "iterations"),
-    ({"seed_fraction": 1.5}, "seed_fraction"),
-    ({"F": 3.0}, "F"),
-    ({"CR": -0.1}, "CR"),
-    ({"method": "pso", "chi": 1.0}, "chi"),
+    ({"options": {"iterations": 3}}, "options: expected a SearchOptions"),
     ({"delta": -0.25}, "delta"),
-    ({"polish": -1}, "polish"),
-    ({"n_solutions": 0}, "n_solutions"),
     ({"rng": "x"}, "rng"),
-    ({"dtype": np.float16}, "dtype"),
-    ({"search_space": "polar"}, "search_space"),
     ({"callback": 3}, "callback"),
 ])
 def test_invalid_arguments(kwargs, match):
     pts, nrm = wobbly()
     with pytest.raises(InvalidInputError, match=match):
         refine(pts, nrm, 4, **kwargs)
+
+
+@pytest.mark.parametrize("changes, match", [
+    ({"population_size": 1}, "population_size"),
+    ({"iterations": -1}, "iterations"),
+    ({"start_fraction": 1.5}, "start_fraction"),
+    ({"mutation": 3.0}, "mutation"),
+    ({"recombination": -0.1}, "recombination"),
+    ({"chi": 1.0}, "chi"),
+    ({"polish_iterations": -1}, "polish_iterations"),
+    ({"n_solutions": 0}, "n_solutions"),
+    ({"dtype": np.float16}, "dtype"),
+    ({"dtype": "x"}, "dtype"),
+    ({"search_space": "polar"}, "search_space"),
+    ({"start_fits": "3l"}, "start_fits"),
+    ({"start_fits": ("3l(k=2)",)}, "start_fits"),
+    ({"far_term_weight": -1.0}, "far_term_weight"),
+])
+def test_invalid_options(changes, match):
+    with pytest.raises(InvalidInputError, match=match):
+        SearchOptions(**changes)
+    with pytest.raises(InvalidInputError, match="unknown"):
+        RECOMMENDED.replace(populaton_size=3)
 
 
 def test_invalid_data():

@@ -17,6 +17,7 @@ from .farfield import FarFieldTerm, far_field_samples
 from .io import read_mesh, read_points, write_points
 from .normals import contour_normals, estimate_normals, normal_agreement, orient_normals
 from .objective import Measures, Objective, measures
+from .options import PAPER, PAPER_METHOD, PAPER_RULE, RECOMMENDED, SearchOptions
 from .plotting import plot_curve, plot_result, plot_smoothness, plot_surface
 from .polynomial import ImplicitPolynomial, Normalization
 from .quality import Quality, quality
@@ -41,6 +42,11 @@ __all__ = [
     "Objective",
     "refine",
     "RefineResult",
+    "SearchOptions",
+    "RECOMMENDED",
+    "PAPER",
+    "PAPER_METHOD",
+    "PAPER_RULE",
     "REFINE_METHODS",
     "optimize",
     "fit_adaptive",

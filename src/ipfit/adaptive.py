@@ -9,20 +9,26 @@ the whole path and take another degree.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
-from typing import Any, Callable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Callable, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from . import basis
-from ._validation import (as_normals, as_points, check_choice, check_int, check_nonnegative, check_real,
-                          check_rng, error)
+from ._validation import (as_faces, as_normals, as_points, check_choice, check_enough_points, check_int,
+                          check_nonnegative, check_real, check_rng, error)
 from .linear import LINEAR_METHODS, fit_linear
+from .normals import estimate_normals
+from .objective import Measures, measures as compute_measures
+from .options import (DEFAULT_DELTA, DEFAULT_EPSILON, DEFAULT_METHOD, DEFAULT_RULE, RECOMMENDED, REFINE_METHODS,
+                      SearchOptions, renamed_keywords)
 from .polynomial import ImplicitPolynomial
+from .quality import Quality, looks_like_contour, quality
+from .refine import _RENAMED as _RENAMED_SEARCH, refine
 
 __all__ = ["fit_adaptive", "AdaptiveResult", "DegreeResult", "select_degree", "select_degree_geometric",
-           "fixed_degree_methods", "DEFAULT_METHOD", "DEFAULT_MAX_DEGREE", "RULES"]
+           "fixed_degree_methods", "DEFAULT_MAX_DEGREE", "RULES"]
 
 #: Degree-selection rules: the paper's Algorithm 1, and the same rule restricted to degrees
 #: whose zero set is clean (no spurious component, closed inside the box) when one exists.
@@ -30,39 +36,66 @@ RULES = ("paper", "geometric")
 
 #: Maximum degree tried by default, per dimension (the paper: degrees 2 to 10 are the norm).
 DEFAULT_MAX_DEGREE = {2: 10, 3: 8}
-DEFAULT_METHOD = "de+polish"
-
-
-def _refine_methods() -> tuple[str, ...]:
-    from .refine import REFINE_METHODS
-
-    return tuple(REFINE_METHODS)
 
 
 def fixed_degree_methods() -> tuple[str, ...]:
     """Names accepted by ``fit_adaptive(method=...)``: the linear fits and the refinements."""
-    return tuple(LINEAR_METHODS) + _refine_methods()
-
+    return tuple(LINEAR_METHODS) + REFINE_METHODS
 
 
 @dataclass(frozen=True, eq=False)
 class DegreeResult:
-    """What the adaptive loop found at one degree."""
+    """What the adaptive loop found at one degree (SciPy's vocabulary, like every result).
 
+    Attributes
+    ----------
+    x, fun : the coefficients (normalised coordinates) and the paper's distance at them.
+    nit, nfev : the fixed-degree method's iterations and objective evaluations (0 for a linear fit).
+    success, message : whether the method reached a finite fit, and how it ended.
+    degree, polynomial, measures : the fit and its :class:`~ipfit.objective.Measures`.
+    quality : its :class:`~ipfit.quality.Quality`, when the rule measured it.
+    seconds : wall-clock time of this degree.
+    solutions : the refinement's best distinct solutions (empty for a linear fit).
+    """
+
+    x: NDArray[np.float64]
+    fun: float
+    nit: int
+    nfev: int
+    success: bool
+    message: str
     degree: int
     polynomial: ImplicitPolynomial
-    dissimilarity: float
-    smoothness: float
-    distance: float
+    measures: Measures
     seconds: float
+    quality: Quality | None = None
     solutions: tuple[ImplicitPolynomial, ...] = ()
-    details: Mapping[str, Any] = field(default_factory=dict)
+
+    @property
+    def dissimilarity(self) -> float:
+        return float(self.measures.dissimilarity)
+
+    @property
+    def smoothness(self) -> float:
+        return float(self.measures.smoothness)
+
+    @property
+    def distance(self) -> float:
+        return float(self.measures.distance)
+
+    @property
+    def clean(self) -> bool:
+        """The zero set has no spurious component and closes inside the box (False when unmeasured)."""
+        return self.quality is not None and self.quality.n_spurious == 0 and bool(self.quality.closed)
 
     def to_dict(self) -> dict:
+        """The entry of ``degrees`` in the JSON result (contract keys, plus nit/nfev/quality)."""
         out = {"degree": self.degree, "dissimilarity": self.dissimilarity, "smoothness": self.smoothness,
                "distance": self.distance, "seconds": self.seconds, "method": self.polynomial.method,
-               "coefficients": [float(c) for c in self.polynomial.coefficients]}
-        out.update({k: v for k, v in self.details.items() if k not in out})
+               "coefficients": [float(c) for c in self.polynomial.coefficients], "nit": self.nit,
+               "nfev": self.nfev, "success": self.success, "message": self.message}
+        if self.quality is not None:
+            out["quality"] = self.quality.to_dict()
         return out
 
 
@@ -114,13 +147,25 @@ class AdaptiveResult:
 
     Attributes
     ----------
+    x, fun : coefficients and paper's distance at the selected degree.
+    nit : degrees tried.  nfev : objective evaluations over all degrees.
+    success : a degree was selected by the rule on a complete path (False when interrupted,
+        or when the geometric rule found no clean degree).
+    message : which degree was selected and why, in words.
     polynomial : the fit at the selected degree (measures filled in).
     selected_degree : int
     degrees : one :class:`DegreeResult` per degree tried, in order.
-    reason : why the loop stopped: 'criterion', 'max_degree' or 'interrupted'.
-    epsilon, delta, method, seconds
+    reason : 'criterion', 'max_degree', 'geometric', 'fixed' or 'interrupted'.
+    epsilon, delta, method, rule, seconds
+    options : the search settings used by a refinement method (None for a linear fit).
     """
 
+    x: NDArray[np.float64]
+    fun: float
+    nit: int
+    nfev: int
+    success: bool
+    message: str
     polynomial: ImplicitPolynomial
     selected_degree: int
     degrees: tuple[DegreeResult, ...]
@@ -128,9 +173,13 @@ class AdaptiveResult:
     epsilon: float
     delta: float
     method: str
+    rule: str
     seconds: float
-    rule: str = "paper"
-    far_weight: float = 0.0
+    options: SearchOptions | None = None
+
+    @property
+    def far_term_weight(self) -> float:
+        return self.options.far_term_weight if self.options is not None else 0.0
 
     @property
     def smoothness_path(self) -> NDArray[np.float64]:
@@ -150,76 +199,84 @@ class AdaptiveResult:
         out["selected_degree"] = self.selected_degree
         out["degrees"] = [d.to_dict() for d in self.degrees]
         out["adaptive"] = {"epsilon": self.epsilon, "delta": self.delta, "method": self.method,
-                           "reason": self.reason, "rule": self.rule, "far_weight": self.far_weight,
-                           "seconds": self.seconds}
+                           "reason": self.reason, "rule": self.rule, "far_weight": self.far_term_weight,
+                           "seconds": self.seconds, "success": self.success, "message": self.message,
+                           "options": self.options.to_dict() if self.options is not None else None}
         chosen = self.at_degree(self.selected_degree)
-        if "quality" in chosen.details:
-            out["quality"] = chosen.details["quality"]
+        if chosen.quality is not None:
+            out["quality"] = chosen.quality.to_dict()
         return out
 
 
-FitFunction = Callable[..., Any]
+FitFunction = Callable[..., ImplicitPolynomial]
 
 
-def _fit_one(method: str | FitFunction, points, normals, degree, delta, rng, params, progress, far_weight):
-    """Fit one degree; returns (polynomial, solutions, details)."""
-    if callable(method):
-        poly = method(points, normals, degree)
-        return poly, (), {}
-    if method in LINEAR_METHODS:
-        return fit_linear(points, normals, degree, method, **params), (), {}
-    from .refine import refine
+class _Fitter:
+    """Fits one degree with the chosen method; refinement settings resolved once."""
 
-    def report(state):
-        progress({"event": "iteration", "degree": degree, **_state_dict(state)})
+    def __init__(self, method, options: SearchOptions | None, delta: float, rng, progress) -> None:
+        self.method, self.delta, self.rng, self.progress = method, delta, rng, progress
+        self.options = options
 
-    result = refine(points, normals, degree, method=method, delta=delta, rng=rng,
-                    callback=report if progress is not None else None, far_weight=far_weight, **params)
-    details = {"nit": int(result.nit), "nfev": int(result.nfev)}
-    return result.polynomial, tuple(result.solutions), details
+    def __call__(self, points, normals, degree):
+        if callable(self.method):
+            poly = self.method(points, normals, degree)
+            if not isinstance(poly, ImplicitPolynomial):
+                raise error("method", "a callable returning an ImplicitPolynomial", type(poly).__name__)
+            return poly, (), 0, 0, True, "custom fit"
+        if self.method in LINEAR_METHODS:
+            return fit_linear(points, normals, degree, self.method), (), 0, 0, True, "linear fit"
 
+        def report(state):
+            self.progress({"event": "iteration", "degree": degree, "stage": state.message, "nit": state.nit,
+                           "fun": state.fun})
 
-def _state_dict(state) -> dict:
-    if isinstance(state, Mapping):
-        return dict(state)
-    out = {}
-    for name in ("nit", "fun"):
-        if hasattr(state, name):
-            out[name] = getattr(state, name)
-    return out
+        result = refine(points, normals, degree, method=self.method, options=self.options, delta=self.delta,
+                        rng=self.rng, callback=report if self.progress is not None else None)
+        return (result.polynomial, tuple(result.solutions), result.nit, result.nfev, result.success,
+                result.message)
 
 
+def _check_progress(progress):
+    if progress is not None and not callable(progress):
+        raise error("progress", "a callable taking one event dict, or None", type(progress).__name__)
+    return progress
+
+
+@renamed_keywords(**_RENAMED_SEARCH)
 def fit_adaptive(points: ArrayLike, normals: ArrayLike | None = None, *, method: str | FitFunction = DEFAULT_METHOD,
-                 max_degree: int | None = None, min_degree: int = 2, epsilon: float = 0.01, delta: float = 0.25,
-                 rule: str = "geometric", far_weight: float | None = None, faces: ArrayLike | None = None,
-                 ordered_contour: bool | None = None, rng=None, progress: Callable[[dict], None] | None = None, **params) -> AdaptiveResult:
+                 options: SearchOptions | None = None, max_degree: int | None = None, min_degree: int = 2,
+                 epsilon: float = DEFAULT_EPSILON, delta: float = DEFAULT_DELTA, rule: str = DEFAULT_RULE,
+                 faces: ArrayLike | None = None, ordered_contour: bool | None = None, rng=None,
+                 progress: Callable[[dict], None] | None = None) -> AdaptiveResult:
     """Find the degree the data needs (Algorithm 1) and fit at it.
 
     Parameters
     ----------
     points : (N, 2) or (N, 3) array.
     normals : (N, dim) array, or None to estimate them (:func:`ipfit.estimate_normals`).
-    method : a fixed-degree method: a linear fit ('lstsq', 'taubin', '3l', 'ridge',
-        'gradient_one'), a refinement ('de', 'pso', 'de+polish', 'pso+polish', 'polish'), or a
-        callable ``(points, normals, degree) -> ImplicitPolynomial``.
+    method : a fixed-degree method: a refinement ('de+polish' (default), 'pso+polish', 'de',
+        'pso', 'polish'), a linear fit ('lstsq', 'taubin', '3l', 'ridge', 'gradient_one',
+        '3l-far'), or a callable ``(points, normals, degree) -> ImplicitPolynomial`` (use
+        :func:`functools.partial` to set a linear fit's parameters).
+    options : :class:`~ipfit.SearchOptions` of the refinement methods (default
+        :data:`ipfit.RECOMMENDED`; :data:`ipfit.PAPER` is the paper's); an error with a linear
+        method or a callable, which have no search.
     max_degree : G, the last degree tried (default 10 in 2D, 8 in 3D).
-    min_degree : the first degree tried (even, default 2).
+    min_degree : the first degree tried (default 2).
     epsilon : ε, the smallest smoothness gain that justifies a higher degree.
     delta : δ of the paper's distance.
-    far_weight : weight of the far-field term in the refinement objective
-        (:class:`ipfit.farfield.FarFieldTerm`); default
-        :data:`ipfit.farfield.DEFAULT_TERM_WEIGHT` for the refinement methods; 0 gives the
-        paper's objective. Not used by the linear methods ('3l-far' is 3L with far-field rows).
-    rule : 'geometric' (default) or 'paper' (Algorithm 1 exactly). 'geometric': the geometric quality of every degree is
-        measured (:func:`ipfit.quality.quality`: F-score, spurious components, closed) and
-        a degree whose zero set is not clean is not selected when a clean one exists; the
-        loop goes on past the paper's stop until a clean degree has been seen.
+    rule : 'geometric' (default) or 'paper' (Algorithm 1 exactly). 'geometric': the geometric
+        quality of every degree is measured (:func:`ipfit.quality.quality`: F-score, spurious
+        components, closed) and a degree whose zero set is not clean is not selected when a
+        clean one exists; the loop goes on past the paper's stop until a clean degree has
+        been seen.
     faces, ordered_contour : describe the data's shape for the quality measures (mesh faces;
         a 2D contour in order, detected by :func:`ipfit.quality.looks_like_contour` when
         None), used with ``rule='geometric'``.
     rng : seed or Generator (SPEC 7), passed to the metaheuristics.
-    progress : called with a dict per event ('degree_start', 'iteration', 'degree_done').
-    **params : passed to the fixed-degree method (e.g. ``iterations``, ``population``).
+    progress : called with a dict per event ('degree_start', 'iteration' with its 'stage',
+        'degree_done').
 
     Returns
     -------
@@ -227,9 +284,11 @@ def fit_adaptive(points: ArrayLike, normals: ArrayLike | None = None, *, method:
 
     Notes
     -----
-    Ctrl-C (KeyboardInterrupt) during a degree ends the loop: the degrees already finished
-    are kept and the rule is applied to them (``reason='interrupted'``). With none finished,
-    the interrupt propagates.
+    The paper's exact pipeline is ``fit_adaptive(points, normals, method=PAPER_METHOD,
+    options=PAPER, rule=PAPER_RULE)`` (what ``ipfit fit --paper`` runs). Ctrl-C
+    (KeyboardInterrupt) during a degree ends the loop: the degrees already finished are kept
+    and the rule is applied to them (``reason='interrupted'``). With none finished, the
+    interrupt propagates.
 
     Examples
     --------
@@ -237,92 +296,119 @@ def fit_adaptive(points: ArrayLike, normals: ArrayLike | None = None, *, method:
     >>> from ipfit.datasets import synthetic
     >>> shape = synthetic.ellipse(200)
     >>> result = fit_adaptive(shape.points, shape.normals, method="3l")
-    >>> result.selected_degree
-    2
+    >>> result.selected_degree, result.success
+    (2, True)
     """
-    from .objective import measures as compute_measures
-
     pts = as_points(points)
     dim = pts.shape[1]
-    if normals is None:
-        from .normals import estimate_normals
-
-        unit = estimate_normals(pts)
-    else:
-        unit = as_normals(normals, pts)
     if not callable(method):
         method = check_choice(method, "method", fixed_degree_methods())
+    if method in REFINE_METHODS:
+        options = RECOMMENDED if options is None else options
+        if not isinstance(options, SearchOptions):
+            raise error("options", "a SearchOptions (e.g. ipfit.RECOMMENDED or ipfit.PAPER)", type(options).__name__)
+        options.for_method(method)
+    elif options is not None:
+        name = method if isinstance(method, str) else "a callable"
+        raise error("options", f"None for method {name!r}, which has no search", "SearchOptions",
+                    "Drop the search options (or the far-field term weight) or pick a refinement method.")
     rule = check_choice(rule, "rule", RULES)
-    if far_weight is None:
-        from .farfield import DEFAULT_TERM_WEIGHT
-
-        far_weight = DEFAULT_TERM_WEIGHT
-    far_weight = check_nonnegative(far_weight, "far_weight")
     epsilon = check_real(epsilon, "epsilon")
     delta = check_nonnegative(delta, "delta")
     min_degree = check_int(min_degree, "min_degree", minimum=1)
-    top = DEFAULT_MAX_DEGREE[dim] if max_degree is None else check_int(max_degree, "max_degree", minimum=min_degree)
-    largest_possible = max((g for g in range(1, top + 1) if basis.n_coefficients(dim, g) <= len(pts)), default=0)
-    if largest_possible < min_degree:
-        raise error("points", f"at least {basis.n_coefficients(dim, min_degree)} points for degree {min_degree}",
-                    f"{len(pts)} points", "Pass more points.")
-    if top > largest_possible:
-        if max_degree is not None:
-            raise error("max_degree", f"at most {largest_possible} for {len(pts)} points "
-                        f"(degree {top} has {basis.n_coefficients(dim, top)} coefficients)", str(top),
-                        "Lower --max-degree or pass more points.")
-        top = largest_possible
     generator = check_rng(rng)
-    degrees = list(range(min_degree, top + 1, 2))
+    progress = _check_progress(progress)
+    if ordered_contour is not None and not isinstance(ordered_contour, (bool, np.bool_)):
+        raise error("ordered_contour", "True, False or None", repr(ordered_contour))
+    top = _top_degree(len(pts), dim, min_degree, max_degree)
+    faces = None if faces is None else as_faces(faces, len(pts), dim)
+    unit = estimate_normals(pts) if normals is None else as_normals(normals, pts)
+    if rule == "geometric" and ordered_contour is None:
+        ordered_contour = dim == 2 and looks_like_contour(pts)
+    fitter = _Fitter(method, options if method in REFINE_METHODS else None, delta, generator, progress)
+    degrees = list(range(min_degree, top + 1, 2)) if top > min_degree else [min_degree]
     start = time.perf_counter()
     results: list[DegreeResult] = []
     reason = "max_degree"
     for degree in degrees:
         if progress is not None:
             progress({"event": "degree_start", "degree": degree})
-        t0 = time.perf_counter()
         try:
-            poly, solutions, details = _fit_one(method, pts, unit, degree, delta, generator, params, progress,
-                                                far_weight)
+            entry = _fit_degree(fitter, pts, unit, degree, delta, rule, faces, ordered_contour)
         except KeyboardInterrupt:
             if not results:
                 raise
             reason = "interrupted"
             break
-        m = compute_measures(poly, pts, unit, delta=delta)
-        poly = poly.with_coefficients(poly.coefficients, measures=m.to_dict())
-        if rule == "geometric":
-            from .quality import looks_like_contour, quality
-
-            if ordered_contour is None:
-                ordered_contour = dim == 2 and looks_like_contour(pts)
-            q = quality(poly, pts, faces=faces, ordered_contour=ordered_contour)
-            details = {**details, "quality": q.to_dict()}
-        entry = DegreeResult(degree, poly, float(m.dissimilarity), float(m.smoothness), float(m.distance),
-                             time.perf_counter() - t0, solutions, details)
         results.append(entry)
         if progress is not None:
             progress({"event": "degree_done", **entry.to_dict()})
         if len(results) >= 2 and results[-1].smoothness - results[-2].smoothness <= epsilon:
-            if rule == "paper" or any(_is_clean(r) for r in results):
+            if rule == "paper" or any(r.clean for r in results):
                 reason = "criterion"
                 break
-    complete = reason != "interrupted"
-    if rule == "geometric":
-        index, rule_reason = select_degree_geometric(
-            [r.degree for r in results], [r.smoothness for r in results], [_is_clean(r) for r in results],
-            [r.details["quality"]["f_score"] for r in results], epsilon, complete)
-    else:
-        index, rule_reason = select_degree([r.degree for r in results], [r.smoothness for r in results], epsilon,
-                                           complete=complete)
-    if reason != "interrupted":
-        reason = rule_reason
+    index, reason = _select(results, rule, epsilon, reason, fixed=len(degrees) == 1)
     chosen = results[index]
     name = method if isinstance(method, str) else getattr(method, "__name__", "custom")
-    return AdaptiveResult(chosen.polynomial, chosen.degree, tuple(results), reason, epsilon, delta, name,
-                          time.perf_counter() - start, rule, far_weight if name in _refine_methods() else 0.0)
+    success = reason != "interrupted" and (rule == "paper" or chosen.clean or not any(r.clean for r in results))
+    return AdaptiveResult(
+        x=chosen.x, fun=chosen.fun, nit=len(results), nfev=sum(r.nfev for r in results), success=success,
+        message=_explain(results, index, reason, epsilon), polynomial=chosen.polynomial,
+        selected_degree=chosen.degree, degrees=tuple(results), reason=reason, epsilon=epsilon, delta=delta,
+        method=name, rule=rule, seconds=time.perf_counter() - start,
+        options=options if method in REFINE_METHODS else None)
 
 
-def _is_clean(entry: DegreeResult) -> bool:
-    q = entry.details.get("quality")
-    return bool(q) and q["n_spurious"] == 0 and bool(q["closed"])
+def _top_degree(n_points: int, dim: int, min_degree: int, max_degree: int | None) -> int:
+    top = DEFAULT_MAX_DEGREE[dim] if max_degree is None else check_int(max_degree, "max_degree", minimum=min_degree)
+    largest_possible = max((g for g in range(1, top + 1) if basis.n_coefficients(dim, g) <= n_points), default=0)
+    if largest_possible < min_degree:
+        check_enough_points(n_points, dim, min_degree)
+    if top > largest_possible:
+        if max_degree is not None:
+            raise error("max_degree", f"at most {largest_possible} for {n_points} points "
+                        f"(degree {top} has {basis.n_coefficients(dim, top)} coefficients)", str(top),
+                        "Lower the maximum degree or pass more points.")
+        top = largest_possible
+    return top
+
+
+def _fit_degree(fitter: _Fitter, pts, unit, degree, delta, rule, faces, ordered_contour) -> DegreeResult:
+    t0 = time.perf_counter()
+    poly, solutions, nit, nfev, success, message = fitter(pts, unit, degree)
+    m = compute_measures(poly, pts, unit, delta=delta)
+    poly = poly.with_coefficients(poly.coefficients, measures=m.to_dict())
+    q = quality(poly, pts, faces=faces, ordered_contour=ordered_contour) if rule == "geometric" else None
+    return DegreeResult(x=poly.coefficients, fun=float(m.distance), nit=nit, nfev=nfev, success=success,
+                        message=message, degree=degree, polynomial=poly, measures=m,
+                        seconds=time.perf_counter() - t0, quality=q, solutions=solutions)
+
+
+def _select(results, rule, epsilon, reason, fixed: bool) -> tuple[int, str]:
+    complete = reason != "interrupted"
+    if fixed and complete:
+        return 0, "fixed"
+    smooth = [r.smoothness for r in results]
+    degs = [r.degree for r in results]
+    if rule == "geometric":
+        index, rule_reason = select_degree_geometric(degs, smooth, [r.clean for r in results],
+                                                     [r.quality.f_score for r in results], epsilon, complete)
+    else:
+        index, rule_reason = select_degree(degs, smooth, epsilon, complete=complete)
+    return index, (rule_reason if complete else "interrupted")
+
+
+def _explain(results, index, reason, epsilon) -> str:
+    chosen = results[index]
+    if reason == "fixed":
+        return f"fixed degree {chosen.degree}"
+    if reason == "interrupted":
+        return f"interrupted: degree {chosen.degree} selected among the {len(results)} degrees finished"
+    if reason == "criterion":
+        nxt = results[index + 1]
+        return (f"degree {chosen.degree}: the smoothness gain at degree {nxt.degree} was "
+                f"{nxt.smoothness - chosen.smoothness:.4g} <= epsilon = {epsilon:g}")
+    if reason == "geometric":
+        return (f"degree {chosen.degree}: the clean degree with the highest F-score; the paper's rule chose a degree "
+                "whose zero set has spurious components or is not closed")
+    return f"degree {chosen.degree}: the last degree tried (the smoothness still improved by more than {epsilon:g})"

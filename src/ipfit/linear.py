@@ -12,6 +12,8 @@ never through the normal equations, whose condition number is the square of the 
 
 from __future__ import annotations
 
+import functools
+import numbers
 import warnings
 from dataclasses import dataclass
 from math import factorial
@@ -22,7 +24,9 @@ import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 
 from . import basis
-from ._validation import as_normals, as_points, check_choice, check_degree, check_nonnegative, check_positive, error
+from ._validation import (as_normals, as_points, check_choice, check_degree, check_enough_points, check_nonnegative,
+                          check_positive, error)
+from .options import into_keyword, renamed_keywords
 from .exceptions import ConditioningWarning
 from .farfield import far_field_samples
 from .polynomial import ImplicitPolynomial, Normalization
@@ -39,7 +43,7 @@ __all__ = [
     "DEFAULT_OFFSET",
     "DEFAULT_KAPPA",
     "DEFAULT_MU",
-    "DEFAULT_FAR_WEIGHT",
+    "DEFAULT_FAR_ROW_WEIGHT",
     "far_field_samples",
 ]
 
@@ -52,9 +56,10 @@ DEFAULT_KAPPA = 1e-4
 #: so μ only trades zero-set accuracy against unit gradients: on an exact 3:1.2 ellipse at
 #: degree 2 the largest zero-set error is 0.11 for μ = 1, 0.06 for 0.1 and 0.012 for 0.01.
 DEFAULT_MU = 0.01
-#: Default far-field weight of the "3l-far" method: the far-field rows' share of the system's
-#: total weight (see :func:`far_field_rows`).
-DEFAULT_FAR_WEIGHT = 1e-3
+#: Default far-field row weight of the "3l-far" method: the far-field rows' share of the
+#: system's total weight (see :func:`_with_far_field`). Not the objective's far-field *term*
+#: weight (:attr:`ipfit.SearchOptions.far_term_weight`).
+DEFAULT_FAR_ROW_WEIGHT = 1e-3
 _RCOND = 1e-13  # relative singular-value cut-off of the triangular solves
 
 
@@ -87,11 +92,7 @@ def _prepare(points: ArrayLike, normals: ArrayLike | None, degree, *, method: st
              needs_normals: bool) -> _Problem:
     degree = check_degree(degree)
     pts = as_points(points)
-    dim = pts.shape[1]
-    d = basis.n_coefficients(dim, degree)
-    if pts.shape[0] < d:
-        raise error("points", f"at least {d} points for a degree-{degree} {dim}D polynomial ({d} coefficients)",
-                    f"{pts.shape[0]} points", "Pass more points or lower the degree.")
+    check_enough_points(pts.shape[0], pts.shape[1], degree)
     unit = as_normals(normals, pts, required_by=method if needs_normals else None)
     norm = Normalization.from_points(pts)
     return _Problem(norm.apply(pts), unit, norm, degree)
@@ -167,23 +168,23 @@ def _three_level_rows(problem: _Problem, c: float) -> tuple[NDArray, NDArray]:
     return problem.design(stacked), targets
 
 
-def _with_far_field(problem: _Problem, a_mat: NDArray, b: NDArray, far_weight: float, c: float):
-    """Append far-field rows whose total weight is ``far_weight`` times the data rows' weight."""
-    if far_weight <= 0:
+def _with_far_field(problem: _Problem, a_mat: NDArray, b: NDArray, far_row_weight: float, c: float):
+    """Append far-field rows whose total weight is ``far_row_weight`` times the data rows' weight."""
+    if far_row_weight <= 0:
         return a_mat, b, 0
     samples, targets = far_field_samples(problem.u, problem.normals, c=c)
     if len(samples) == 0:
         return a_mat, b, 0
-    root = np.sqrt(far_weight * len(b) / len(samples))
+    root = np.sqrt(far_row_weight * len(b) / len(samples))
     return (np.concatenate([a_mat, root * problem.design(samples)]),
             np.concatenate([b, root * targets]), len(samples))
 
 
-def _solve_3l(problem: _Problem, c: float = DEFAULT_OFFSET, far_weight: float = 0.0) -> tuple[NDArray, dict]:
+def _solve_3l(problem: _Problem, c: float = DEFAULT_OFFSET, far_row_weight: float = 0.0) -> tuple[NDArray, dict]:
     a_mat, b = _three_level_rows(problem, c)
-    a_mat, b, n_far = _with_far_field(problem, a_mat, b, far_weight, c)
+    a_mat, b, n_far = _with_far_field(problem, a_mat, b, far_row_weight, c)
     coef, info = _qr_solve(a_mat, b, "fit_3l")
-    info.update(far_weight=far_weight, far_samples=n_far)
+    info.update(far_row_weight=far_row_weight, far_samples=n_far)
     return coef, info
 
 
@@ -202,25 +203,55 @@ def ridge_penalty(u: NDArray[np.float64], exps: NDArray[np.int64]) -> NDArray[np
 
 
 def _solve_ridge(problem: _Problem, c: float = DEFAULT_OFFSET, kappa: float = DEFAULT_KAPPA,
-                 far_weight: float = 0.0) -> tuple[NDArray, dict]:
+                 far_row_weight: float = 0.0) -> tuple[NDArray, dict]:
     a_mat, b = _three_level_rows(problem, c)
-    a_mat, b, n_far = _with_far_field(problem, a_mat, b, far_weight, c)
+    a_mat, b, n_far = _with_far_field(problem, a_mat, b, far_row_weight, c)
     penalty = ridge_penalty(problem.u, problem.exponents)
     coef, info = _qr_solve(a_mat, b, "fit_ridge", extra_rows=np.diag(np.sqrt(kappa * penalty)))
-    info.update(kappa=kappa, far_weight=far_weight, far_samples=n_far)
+    info.update(kappa=kappa, far_row_weight=far_row_weight, far_samples=n_far)
     return coef, info
 
 
-def _solve_gradient_one(problem: _Problem, mu: float = DEFAULT_MU, far_weight: float = 0.0,
+def _solve_gradient_one(problem: _Problem, mu: float = DEFAULT_MU, far_row_weight: float = 0.0,
                         c: float = DEFAULT_OFFSET) -> tuple[NDArray, dict]:
     m, dm = basis.monomials_and_gradients(problem.u, problem.degree)
     root = np.sqrt(mu)
     a_mat = np.concatenate([m, root * dm.reshape(-1, m.shape[1])])
     b = np.concatenate([np.zeros(len(m)), root * problem.normals.T.ravel()])
-    a_mat, b, n_far = _with_far_field(problem, a_mat, b, far_weight, c)
+    a_mat, b, n_far = _with_far_field(problem, a_mat, b, far_row_weight, c)
     coef, info = _qr_solve(a_mat, b, "fit_gradient_one")
-    info.update(mu=mu, far_weight=far_weight, far_samples=n_far)
+    info.update(mu=mu, far_row_weight=far_row_weight, far_samples=n_far)
     return coef, info
+
+
+def _offset(c: float) -> float:
+    c = check_positive(c, "c")
+    if c > _MAX_OFFSET:
+        raise error("c", f"an offset in (0, {_MAX_OFFSET:g}] normalised units (the data's mean distance to its "
+                    "centre is 1)", f"{c:g}", f"The default is {DEFAULT_OFFSET}.")
+    return c
+
+
+def _bounded(value: float, name: str, largest: float) -> float:
+    value = check_nonnegative(value, name)
+    if value > largest:
+        raise error(name, f"a number in [0, {largest:g}]", f"{value:g}")
+    return value
+
+
+# Parameter checkers per method: the one place where linear-fit parameters are validated.
+# Offsets larger than the shape put the 3L levels on the other side of it.
+_MAX_OFFSET = 10.0
+_PARAMS: dict[str, dict[str, Callable[[float], float]]] = {
+    "lstsq": {},
+    "taubin": {},
+    "3l": {"c": _offset, "far_row_weight": lambda v: _bounded(v, "far_row_weight", 1e6)},
+    "ridge": {"c": _offset, "kappa": lambda v: _bounded(v, "kappa", 1e12),
+              "far_row_weight": lambda v: _bounded(v, "far_row_weight", 1e6)},
+    "gradient_one": {"mu": lambda v: check_positive(_bounded(v, "mu", 1e12), "mu"), "c": _offset,
+                     "far_row_weight": lambda v: _bounded(v, "far_row_weight", 1e6)},
+}
+_PARAMS["3l-far"] = _PARAMS["3l"]
 
 
 @dataclass(frozen=True)
@@ -236,14 +267,25 @@ LINEAR_METHODS: dict[str, _Method] = {
     "3l": _Method(_solve_3l, needs_normals=True),
     "ridge": _Method(_solve_ridge, needs_normals=True),
     "gradient_one": _Method(_solve_gradient_one, needs_normals=True),
-    "3l-far": _Method(_solve_3l, needs_normals=True, defaults=(("far_weight", DEFAULT_FAR_WEIGHT),)),
+    "3l-far": _Method(_solve_3l, needs_normals=True, defaults=(("far_row_weight", DEFAULT_FAR_ROW_WEIGHT),)),
 }
 
 
 def _fit(method: str, points, normals, degree, **params) -> ImplicitPolynomial:
+    checks = _PARAMS[method]
+    for name in params:
+        if name not in checks:
+            allowed = ", ".join(checks) or "no parameters"
+            raise error(name, f"a parameter of the {method!r} fit ({allowed})", "an unknown name")
+    params = {name: checks[name](value) for name, value in params.items()}
     spec = LINEAR_METHODS[method]
     problem = _prepare(points, normals, degree, method=f"fit_{method}", needs_normals=spec.needs_normals)
-    coef, info = spec.solve(problem, **{**dict(spec.defaults), **params})
+    try:
+        with np.errstate(all="ignore"):
+            coef, info = spec.solve(problem, **{**dict(spec.defaults), **params})
+    except (np.linalg.LinAlgError, scipy.linalg.LinAlgError, ValueError) as exc:
+        raise error("points", "data whose linear system can be solved", f"a {method} system that failed ({exc})",
+                    "Check the points, the normals, the degree and the method's parameters.") from None
     if not np.isfinite(coef).all() or not np.any(coef):
         raise error("points", "data that determine a polynomial", f"a degenerate {method} system",
                     "Check the points, the normals and the degree.")
@@ -253,14 +295,34 @@ def _fit(method: str, points, normals, degree, **params) -> ImplicitPolynomial:
     return poly.canonical()
 
 
-def fit_lstsq(points: ArrayLike, degree: int, normals: ArrayLike | None = None) -> ImplicitPolynomial:
+def _degree_second(func):
+    """Accept the old ``fit_lstsq(points, degree, normals)`` order for one release."""
+
+    @functools.wraps(func)
+    def wrapper(points, *args, **kwargs):
+        if "degree" not in kwargs and args and isinstance(args[0], numbers.Integral) and not isinstance(args[0],
+                                                                                                        bool):
+            warnings.warn(f"{func.__name__}(points, degree, normals) is deprecated: all fits take "
+                          "(points, normals, degree)", DeprecationWarning, stacklevel=2)
+            normals = args[1] if len(args) > 1 else kwargs.pop("normals", None)
+            return func(points, normals, args[0], **kwargs)
+        return func(points, *args, **kwargs)
+
+    return wrapper
+
+
+_RENAMED = renamed_keywords(far_weight=into_keyword("far_row_weight"))
+
+
+@_degree_second
+def fit_lstsq(points: ArrayLike, normals: ArrayLike | None = None, degree: int | None = None) -> ImplicitPolynomial:
     """Classic linear fit (paper, Section 2.2): minimise ||M a|| subject to ||a|| = 1.
 
     Parameters
     ----------
     points : (N, 2) or (N, 3) array
-    degree : int >= 1
     normals : optional (N, dim) array, only used to choose the sign (f > 0 outside).
+    degree : int >= 1
 
     Returns
     -------
@@ -279,7 +341,8 @@ def fit_lstsq(points: ArrayLike, degree: int, normals: ArrayLike | None = None) 
     return _fit("lstsq", points, normals, degree)
 
 
-def fit_taubin(points: ArrayLike, degree: int, normals: ArrayLike | None = None) -> ImplicitPolynomial:
+@_degree_second
+def fit_taubin(points: ArrayLike, normals: ArrayLike | None = None, degree: int | None = None) -> ImplicitPolynomial:
     """Taubin's fit: the generalised eigenproblem MᵀM a = λ (Σ_k M_kᵀ M_k) a (Taubin 1991).
 
     The constant term has zero gradient, making the right-hand matrix singular; it is
@@ -294,16 +357,17 @@ def fit_taubin(points: ArrayLike, degree: int, normals: ArrayLike | None = None)
     return _fit("taubin", points, normals, degree)
 
 
+@_RENAMED
 def fit_3l(points: ArrayLike, normals: ArrayLike, degree: int, c: float = DEFAULT_OFFSET,
-           far_weight: float = 0.0) -> ImplicitPolynomial:
+           far_row_weight: float = 0.0) -> ImplicitPolynomial:
     """The 3L algorithm (Blane et al. 2000).
 
     Each point is offset by ±c along its unit normal (c in normalised units, where the
     data's mean distance to its centre is 1); the targets are +c outside, 0 on the data and
     −c inside, and the 3N×d system is solved by QR.
 
-    ``far_weight > 0`` adds far-field rows (:func:`far_field_samples`): grid samples of the
-    box away from the data whose target is their signed distance to the data, with that
+    ``far_row_weight > 0`` adds far-field rows (:func:`far_field_samples`): grid samples of
+    the box away from the data whose target is their signed distance to the data, with that
     share of the system's total weight. They keep the zero set from growing extra sheets
     away from the data; 0 (the default) is the paper's 3L.
 
@@ -314,12 +378,12 @@ def fit_3l(points: ArrayLike, normals: ArrayLike, degree: int, c: float = DEFAUL
     >>> bool(abs(poly([[1.0, 0.0]])[0]) < 1e-2)  # 3L is close, not exact: level sets ±c of x²+y²−1 are not at distance c
     True
     """
-    return _fit("3l", points, normals, degree, c=check_positive(c, "c"),
-                far_weight=check_nonnegative(far_weight, "far_weight"))
+    return _fit("3l", points, normals, degree, c=c, far_row_weight=far_row_weight)
 
 
+@_RENAMED
 def fit_ridge(points: ArrayLike, normals: ArrayLike, degree: int, kappa: float = DEFAULT_KAPPA,
-              c: float = DEFAULT_OFFSET, far_weight: float = 0.0) -> ImplicitPolynomial:
+              c: float = DEFAULT_OFFSET, far_row_weight: float = 0.0) -> ImplicitPolynomial:
     """3L with ridge regression: a = argmin ||A a − b||² + κ aᵀDa (paper, Section 5.5).
 
     ``D`` is :func:`ridge_penalty` (rotation invariant). Because γ_t sums over the N data
@@ -333,12 +397,12 @@ def fit_ridge(points: ArrayLike, normals: ArrayLike, degree: int, kappa: float =
     >>> bool(abs(poly([[0.0, 1.0]])[0]) < 1e-3)
     True
     """
-    return _fit("ridge", points, normals, degree, c=check_positive(c, "c"),
-                kappa=check_nonnegative(kappa, "kappa"), far_weight=check_nonnegative(far_weight, "far_weight"))
+    return _fit("ridge", points, normals, degree, c=c, kappa=kappa, far_row_weight=far_row_weight)
 
 
+@_RENAMED
 def fit_gradient_one(points: ArrayLike, normals: ArrayLike, degree: int, mu: float = DEFAULT_MU,
-                     far_weight: float = 0.0) -> ImplicitPolynomial:
+                     far_row_weight: float = 0.0) -> ImplicitPolynomial:
     """Tasdizen's gradient-one fit: minimise Σ f(x_i)² + μ Σ ||∇f(x_i) − n_i||².
 
     Asking ∇f to equal the unit normal on the data makes f close to a signed distance there.
@@ -350,24 +414,21 @@ def fit_gradient_one(points: ArrayLike, normals: ArrayLike, degree: int, mu: flo
     >>> bool(abs(poly([[3.0, 0.0]])[0]) < 1e-9)
     True
     """
-    return _fit("gradient_one", points, normals, degree, mu=check_positive(mu, "mu"),
-                far_weight=check_nonnegative(far_weight, "far_weight"))
+    return _fit("gradient_one", points, normals, degree, mu=mu, far_row_weight=far_row_weight)
 
 
+@_RENAMED
 def fit_linear(points: ArrayLike, normals: ArrayLike | None, degree: int, method: str = "3l",
-               **params) -> ImplicitPolynomial:
+               **params: float) -> ImplicitPolynomial:
     """Dispatch to one of :data:`LINEAR_METHODS` by name (``'lstsq'``, ``'taubin'``, ``'3l'``,
     ``'ridge'``, ``'gradient_one'``, or ``'3l-far'``: 3L with far-field rows at the default
-    weight), passing ``params`` to it."""
+    row weight), with that method's parameters (``c``, ``kappa``, ``mu``, ``far_row_weight``).
+
+    >>> from ipfit import fit_linear
+    >>> from ipfit.datasets.synthetic import circle
+    >>> shape = circle(40)
+    >>> fit_linear(shape.points, shape.normals, 2, "ridge", kappa=0.0).method
+    'ridge'
+    """
     method = check_choice(method, "method", LINEAR_METHODS)
-    if method == "3l-far":
-        c = check_positive(params.pop("c", DEFAULT_OFFSET), "c")
-        far_weight = check_nonnegative(params.pop("far_weight", DEFAULT_FAR_WEIGHT), "far_weight")
-        if params:
-            raise error("params", "c and far_weight for '3l-far'", ", ".join(params))
-        return _fit("3l-far", points, normals, degree, c=c, far_weight=far_weight)
-    funcs = {"lstsq": fit_lstsq, "taubin": fit_taubin, "3l": fit_3l, "ridge": fit_ridge,
-             "gradient_one": fit_gradient_one}
-    if LINEAR_METHODS[method].needs_normals:
-        return funcs[method](points, normals, degree, **params)
-    return funcs[method](points, degree, normals=normals, **params)
+    return _fit(method, points, normals, degree, **params)

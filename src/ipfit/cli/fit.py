@@ -10,7 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ._common import OutputSet, finite_float, load_input, nonnegative_float, positive_int, prepare_output_dir, show_progress
+from ._common import (OutputSet, finite_float, load_input, nonnegative_float, nonnegative_int, positive_int,
+                      prepare_output_dir, show_progress)
 
 NAME = "fit"
 HELP = "fit an implicit polynomial to a point file or a bundled dataset"
@@ -32,7 +33,9 @@ Ctrl-C stops cleanly: the outputs keep every degree already finished.
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    from ..adaptive import DEFAULT_METHOD, fixed_degree_methods
+    from ..adaptive import fixed_degree_methods
+    from ..options import (DEFAULT_DELTA, DEFAULT_EPSILON, DEFAULT_ITERATIONS, DEFAULT_METHOD, PAPER, PAPER_METHOD,
+                           PAPER_RULE, RECOMMENDED)
 
     parser.add_argument("input", metavar="INPUT", help="point file or bundled dataset name")
     parser.add_argument("-o", "--output", metavar="PREFIX",
@@ -41,31 +44,61 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="'auto' for the adaptive degree (default), or a fixed even degree N")
     parser.add_argument("--max-degree", type=positive_int, metavar="G",
                         help="largest degree the adaptive loop tries (default 10 in 2D, 8 in 3D)")
-    parser.add_argument("--method", default=DEFAULT_METHOD, choices=fixed_degree_methods(), metavar="METHOD",
+    parser.add_argument("--method", default=None, choices=fixed_degree_methods(), metavar="METHOD",
                         help="fixed-degree method: " + ", ".join(fixed_degree_methods())
                         + f" (default {DEFAULT_METHOD}; 'de' and 'pso' are the paper's metaheuristics)")
-    parser.add_argument("--epsilon", type=finite_float, default=0.01,
-                        help="stop when smoothness improves by no more than this (default 0.01)")
-    parser.add_argument("--delta", type=nonnegative_float, default=0.25,
-                        help="penalty weight δ of the paper's distance (default 0.25)")
-    parser.add_argument("--far-weight", type=nonnegative_float, default=None, metavar="W",
+    parser.add_argument("--epsilon", type=finite_float, default=DEFAULT_EPSILON,
+                        help=f"stop when smoothness improves by no more than this (default {DEFAULT_EPSILON})")
+    parser.add_argument("--delta", type=nonnegative_float, default=DEFAULT_DELTA,
+                        help=f"penalty weight δ of the paper's distance (default {DEFAULT_DELTA})")
+    parser.add_argument("--far-term-weight", "--far-weight", dest="far_term_weight", type=nonnegative_float,
+                        default=None, metavar="W",
                         help="weight of the far-field term that keeps the zero set from growing spurious sheets "
-                        "(default 0.1; 0 is the paper's objective)")
-    parser.add_argument("--rule", choices=("geometric", "paper"), default="geometric",
+                        f"(default {RECOMMENDED.far_term_weight:g}; 0 is the paper's objective)")
+    parser.add_argument("--rule", choices=("geometric", "paper"), default=None,
                         help="degree rule: 'paper' is Algorithm 1 exactly; 'geometric' (default) also refuses a "
                         "degree whose zero set has spurious components or leaves the box when a clean one exists")
     parser.add_argument("--paper", action="store_true",
-                        help="the paper's exact pipeline: --method de --far-weight 0 --rule paper, DE in the raw "
-                        "coefficients seeded with the classic and 3L fits only")
-    parser.add_argument("--iterations", type=positive_int, help="metaheuristic iterations (default 500)")
+                        help=f"the paper's exact pipeline: --method {PAPER_METHOD} --far-term-weight "
+                        f"{PAPER.far_term_weight:g} --rule {PAPER_RULE}, DE in the raw coefficients started from "
+                        "the " + " and ".join(PAPER.start_fits) + " fits only")
+    parser.add_argument("--iterations", type=positive_int,
+                        help=f"metaheuristic iterations (default {DEFAULT_ITERATIONS})")
     parser.add_argument("--population", type=positive_int,
                         help="metaheuristic population (default 4 × the number of coefficients)")
-    parser.add_argument("--seed", type=int, default=0, help="random seed for a reproducible run (default 0)")
+    parser.add_argument("--seed", type=nonnegative_int, default=0, help="random seed for a reproducible run (default 0)")
     parser.add_argument("--normals", choices=("file", "estimate"), default=None,
                         help="use the file's normals or estimate them (default: the file's when present)")
     parser.add_argument("--no-picture", action="store_true", help="skip the PNG picture")
     parser.add_argument("--no-zero-set", action="store_true", help="skip the mesh / curve export")
     parser.add_argument("-q", "--quiet", action="store_true", help="no progress output")
+
+
+def search_settings(args: argparse.Namespace):
+    """(method, options, rule) from the command line: --paper is the library's preset exactly."""
+    from ..exceptions import InvalidInputError
+    from ..linear import LINEAR_METHODS
+    from ..options import DEFAULT_METHOD, DEFAULT_RULE, PAPER, PAPER_METHOD, PAPER_RULE, RECOMMENDED
+
+    if args.paper:
+        clash = [flag for flag, value in (("--method", args.method), ("--rule", args.rule),
+                                          ("--far-term-weight", args.far_term_weight)) if value is not None]
+        if clash:
+            raise InvalidInputError(f"--paper: it fixes {', '.join(clash)}; drop {'it' if len(clash) == 1 else 'them'} "
+                                    "or drop --paper.")
+        method, options, rule = PAPER_METHOD, PAPER, PAPER_RULE
+    else:
+        method, options, rule = args.method or DEFAULT_METHOD, RECOMMENDED, args.rule or DEFAULT_RULE
+        if args.far_term_weight is not None:
+            options = options.replace(far_term_weight=args.far_term_weight)
+    changes = {name: value for name, value in (("iterations", args.iterations), ("population_size", args.population))
+               if value is not None}
+    if method in LINEAR_METHODS:
+        if changes or args.far_term_weight is not None:
+            raise InvalidInputError(f"--iterations/--population/--far-term-weight: method {method!r} is a linear fit "
+                                    "and has no search. Drop them or pick de, pso, de+polish or pso+polish.")
+        return method, None, rule
+    return method, options.replace(**changes) if changes else options, rule
 
 
 class _Progress:
@@ -114,7 +147,6 @@ def run(args: argparse.Namespace) -> int:
     from .. import basis
     from ..adaptive import fit_adaptive
     from ..exceptions import InvalidInputError
-    from ..linear import LINEAR_METHODS
 
     data = load_input(args.input)
     points, normals = data.points, data.normals
@@ -132,24 +164,13 @@ def run(args: argparse.Namespace) -> int:
         normals = estimate_normals(points)
         source = "estimated"
     prefix = Path(args.output) if args.output else Path(data.label)
-    params = {}
-    if args.iterations is not None:
-        params["iterations"] = args.iterations
-    if args.population is not None:
-        params["population"] = args.population
-    if args.method in LINEAR_METHODS and params:
-        raise InvalidInputError(f"--iterations/--population: method {args.method!r} is a linear fit and has no "
-                                "iterations. Drop them or pick de, pso, de+polish or pso+polish.")
-    method, far_weight, rule = args.method, args.far_weight, args.rule
-    if args.paper:
-        method, far_weight, rule = "de", 0.0, "paper"
-        params.update(search_space="coefficients", seeds=["lstsq", "3l"])
-    progress = _Progress(show_progress(args.quiet), args.iterations or 500)
+    method, options, rule = search_settings(args)
+    progress = _Progress(show_progress(args.quiet), options.iterations if options is not None else None)
     lo = degree if degree is not None else 2
     hi = degree if degree is not None else args.max_degree
-    result = fit_adaptive(points, normals, method=method, min_degree=lo, max_degree=hi, epsilon=args.epsilon,
-                          delta=args.delta, rule=rule, far_weight=far_weight, faces=data.faces, rng=args.seed,
-                          progress=progress, **params)
+    result = fit_adaptive(points, normals, method=method, options=options, min_degree=lo, max_degree=hi,
+                          epsilon=args.epsilon, delta=args.delta, rule=rule, faces=data.faces, rng=args.seed,
+                          progress=progress)
     payload = result.to_dict()
     payload["input"] = {"source": str(args.input), "n_points": int(len(points)), "normals": source}
     payload["bounds"] = np.column_stack([points.min(axis=0), points.max(axis=0)]).tolist()

@@ -12,7 +12,8 @@ Each returns an :class:`OptimizeResult` (``x``, ``fun``, ``nit``, ``nfev``, ``su
 ``message``, ``history``, ...).
 """
 
-from ._common import OptimizeResult, PopulationSolver, unit_rows
+from .._numeric import unit_rows
+from ._common import OptimizeResult, PopulationSolver
 from ._de import DifferentialEvolution
 from ._polish import polish
 from ._pso import ParticleSwarm

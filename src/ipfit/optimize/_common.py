@@ -11,7 +11,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .._validation import check_int, check_rng, error
 
-__all__ = ["OptimizeResult", "PopulationSolver", "unit_rows"]
+__all__ = ["OptimizeResult", "PopulationSolver"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -47,17 +47,6 @@ class OptimizeResult:
                 f"success={self.success}, message={self.message!r})")
 
 
-def unit_rows(x: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Scale every row to unit Euclidean norm (rows of zeros stay zero).
-
-    The paper's objective does not change when the coefficients are multiplied by a
-    positive constant; projecting candidates on the unit sphere removes that flat direction,
-    along which a population would otherwise drift.
-    """
-    norm = np.linalg.norm(x, axis=-1, keepdims=True)
-    return x / np.where(norm > 0, norm, 1.0)
-
-
 class PopulationSolver(abc.ABC):
     """Base of :class:`DifferentialEvolution` and :class:`ParticleSwarm`.
 
@@ -68,14 +57,17 @@ class PopulationSolver(abc.ABC):
 
     name = "population solver"
 
-    def __init__(self, func: Callable[[NDArray], ArrayLike], population: ArrayLike, *, maxiter: int = 500,
+    def __init__(self, func: Callable[[NDArray], ArrayLike], init: ArrayLike, *, maxiter: int = 500,
                  rng=None, callback: Callable[[OptimizeResult], Any] | None = None,
                  project: Callable[[NDArray], NDArray] | None = None, min_population: int = 2) -> None:
-        pop = np.array(population, dtype=np.float64, copy=True)
+        try:
+            pop = np.array(init, dtype=np.float64, copy=True)
+        except (TypeError, ValueError):
+            raise error("init", "a (P, d) array of numbers", type(init).__name__) from None
         if pop.ndim != 2 or pop.shape[0] < min_population or pop.shape[1] < 1:
-            raise error("population", f"a (P, d) array with P >= {min_population}", f"shape {pop.shape}")
+            raise error("init", f"a (P, d) array with P >= {min_population}", f"shape {pop.shape}")
         if not np.isfinite(pop).all():
-            raise error("population", "finite values", "NaN or inf")
+            raise error("init", "finite values", "NaN or inf")
         if callback is not None and not callable(callback):
             raise error("callback", "a callable or None", type(callback).__name__)
         self.func = func
@@ -133,8 +125,9 @@ class PopulationSolver(abc.ABC):
         return self.snapshot()
 
     def snapshot(self) -> OptimizeResult:
-        return OptimizeResult(self.x, self.fun, self.nit, self.nfev, True, self.message, self.history,
-                              self.population, self.population_fun)
+        return OptimizeResult(x=self.x, fun=self.fun, nit=self.nit, nfev=self.nfev, success=True,
+                              message=self.message, history=self.history, population=self.population,
+                              population_fun=self.population_fun)
 
     def __iter__(self) -> Iterator[OptimizeResult]:
         while self.nit < self.maxiter and not self.stopped:
@@ -161,5 +154,7 @@ class PopulationSolver(abc.ABC):
     def result(self) -> OptimizeResult:
         """The final result, with the population sorted best first."""
         order = np.argsort(self.population_fun, kind="stable")
-        return OptimizeResult(self.x, self.fun, self.nit, self.nfev, True, self.message or "not run",
-                              self.history, self.population[order].copy(), self.population_fun[order].copy())
+        return OptimizeResult(x=self.x, fun=self.fun, nit=self.nit, nfev=self.nfev, success=True,
+                              message=self.message or "not run", history=self.history,
+                              population=self.population[order].copy(),
+                              population_fun=self.population_fun[order].copy())

@@ -7,7 +7,8 @@ from typing import Any, Callable
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._validation import check_probability, error
+from .._validation import check_positive, check_probability, error
+from ..options import into_keyword, renamed_keywords
 from ._common import OptimizeResult, PopulationSolver
 
 __all__ = ["DifferentialEvolution", "distinct_indices", "mutate", "crossover", "select"]
@@ -34,9 +35,9 @@ def distinct_indices(rng: np.random.Generator, size: int, count: int = 3) -> NDA
     return out
 
 
-def mutate(population: NDArray, r1: NDArray, r2: NDArray, r3: NDArray, F: float) -> NDArray:
-    """rand/1 mutant vectors v_i = x_r1 + F (x_r2 − x_r3)."""
-    return population[r1] + F * (population[r2] - population[r3])
+def mutate(population: NDArray, r1: NDArray, r2: NDArray, r3: NDArray, mutation: float) -> NDArray:
+    """rand/1 mutant vectors v_i = x_r1 + F (x_r2 − x_r3), F = ``mutation``."""
+    return population[r1] + mutation * (population[r2] - population[r3])
 
 
 def crossover(population: NDArray, mutant: NDArray, mask: NDArray[np.bool_]) -> NDArray:
@@ -62,12 +63,12 @@ class DifferentialEvolution(PopulationSolver):
     ----------
     func : callable
         (P, d) array → (P,) values; called once per generation with all trial vectors.
-    population : (P, d) array
-        Initial population (P >= 4), e.g. seeded with good solutions.
-    F : float, default 0.7
-        Differential weight (the paper's value, Section 5.2).
-    CR : float, default 0.9
-        Crossover probability.
+    init : (P, d) array
+        Initial population (P >= 4), e.g. started at good solutions.
+    mutation : float, default 0.7
+        Differential weight F (the paper's value, Section 5.2).
+    recombination : float, default 0.9
+        Crossover probability CR.
     maxiter : int, default 500
         Generations.
     rng : None, int or numpy.random.Generator
@@ -83,7 +84,9 @@ class DifferentialEvolution(PopulationSolver):
     -----
     Per generation the draws are, in this order: the three index rows of
     :func:`distinct_indices`, a (P, d) uniform array for the crossover mask (``< CR``) and P
-    integers ``j_rand`` (the component always taken from the mutant). Selection is greedy, so
+    integers ``j_rand`` (the component always taken from the mutant). The names follow
+    :func:`scipy.optimize.differential_evolution`; ``F``/``CR`` and ``population`` are
+    deprecated aliases. Selection is greedy, so
     the best value never increases.
 
     Examples
@@ -98,15 +101,17 @@ class DifferentialEvolution(PopulationSolver):
 
     name = "de"
 
-    def __init__(self, func: Callable[[NDArray], ArrayLike], population: ArrayLike, *, F: float = 0.7,
-                 CR: float = 0.9, maxiter: int = 500, rng=None,
+    @renamed_keywords(F=into_keyword("mutation"), CR=into_keyword("recombination"),
+                      population=into_keyword("init"))
+    def __init__(self, func: Callable[[NDArray], ArrayLike], init: ArrayLike, *, mutation: float = 0.7,
+                 recombination: float = 0.9, maxiter: int = 500, rng=None,
                  callback: Callable[[OptimizeResult], Any] | None = None,
                  project: Callable[[NDArray], NDArray] | None = None) -> None:
-        self.F = float(F)
-        if not (np.isfinite(self.F) and 0 < self.F <= 2):
-            raise error("F", "a differential weight in (0, 2]", repr(F), "The paper uses F = 0.7.")
-        self.CR = check_probability(CR, "CR")
-        super().__init__(func, population, maxiter=maxiter, rng=rng, callback=callback, project=project,
+        self.mutation = check_positive(mutation, "mutation")
+        if self.mutation > 2:
+            raise error("mutation", "a differential weight in (0, 2]", repr(mutation), "The paper uses 0.7.")
+        self.recombination = check_probability(recombination, "recombination")
+        super().__init__(func, init, maxiter=maxiter, rng=rng, callback=callback, project=project,
                          min_population=4)
 
     def trial_vectors(self) -> NDArray[np.float64]:
@@ -114,8 +119,8 @@ class DifferentialEvolution(PopulationSolver):
         pop = self.population
         size, dim = pop.shape
         r1, r2, r3 = distinct_indices(self.rng, size)
-        mutant = mutate(pop, r1, r2, r3, self.F)
-        mask = self.rng.random((size, dim)) < self.CR
+        mutant = mutate(pop, r1, r2, r3, self.mutation)
+        mask = self.rng.random((size, dim)) < self.recombination
         mask[np.arange(size), self.rng.integers(dim, size=size)] = True
         trial = crossover(pop, mutant, mask)
         return self.project(trial) if self.project is not None else trial

@@ -104,8 +104,9 @@ def polish(fun_and_grad: Callable[[NDArray], tuple[float, NDArray]], x0: ArrayLi
     def on_iteration(intermediate_result):
         history.append(float(intermediate_result.fun))
         if callback is not None:
-            snap = OptimizeResult(finish(to_x(intermediate_result.x)), float(intermediate_result.fun),
-                                  len(history) - 1, nfev[0], True, "", np.array(history))
+            snap = OptimizeResult(x=finish(to_x(intermediate_result.x)), fun=float(intermediate_result.fun),
+                                  nit=len(history) - 1, nfev=nfev[0], success=True, message="",
+                                  history=np.array(history))
             try:
                 stop = callback(snap)
             except StopIteration:
@@ -115,7 +116,8 @@ def polish(fun_and_grad: Callable[[NDArray], tuple[float, NDArray]], x0: ArrayLi
                 raise StopIteration
 
     if maxiter == 0:
-        return OptimizeResult(finish(x_start), f0, 0, 1, True, "maxiter is 0", np.array(history))
+        return OptimizeResult(x=finish(x_start), fun=f0, nit=0, nfev=1, success=bool(np.isfinite(f0)),
+                              message="maxiter is 0", history=np.array(history))
     res = scipy.optimize.minimize(counted, y0, jac=True, method="L-BFGS-B", callback=on_iteration,
                                   options={"maxiter": maxiter, "ftol": ftol, "gtol": gtol, "maxcor": 20})
     x = to_x(res.x)
@@ -124,4 +126,8 @@ def polish(fun_and_grad: Callable[[NDArray], tuple[float, NDArray]], x0: ArrayLi
     if not fun < f0 or not np.isfinite(x).all():
         x, fun = x_start, f0
         message += " (no improvement: kept the start)"
-    return OptimizeResult(finish(x), fun, int(res.nit), nfev[0], True, message, np.array(history))
+    # success: a finite value was reached. L-BFGS's own flag is in the message: on these
+    # objectives (|f| is not smooth where f = 0) its line search often ends "abnormally" at a
+    # perfectly good point.
+    return OptimizeResult(x=finish(x), fun=fun, nit=int(res.nit), nfev=nfev[0], success=bool(np.isfinite(fun)),
+                          message=message, history=np.array(history))

@@ -8,6 +8,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .._validation import check_positive, error
+from ..options import into_keyword, renamed_keywords
 from ._common import OptimizeResult, PopulationSolver
 
 __all__ = ["ParticleSwarm", "velocity_update"]
@@ -26,7 +27,7 @@ class ParticleSwarm(PopulationSolver):
     ----------
     func : callable
         (P, d) array → (P,) values.
-    population : (P, d) array
+    init : (P, d) array
         Initial positions; initial velocities are zero, so a seeded particle starts where it
         was put and first moves towards the swarm's best.
     chi : float, default 0.729
@@ -59,7 +60,8 @@ class ParticleSwarm(PopulationSolver):
 
     name = "pso"
 
-    def __init__(self, func: Callable[[NDArray], ArrayLike], population: ArrayLike, *, chi: float = 0.729,
+    @renamed_keywords(population=into_keyword("init"))
+    def __init__(self, func: Callable[[NDArray], ArrayLike], init: ArrayLike, *, chi: float = 0.729,
                  c1: float = 2.05, c2: float = 2.05, maxiter: int = 500, rng=None,
                  callback: Callable[[OptimizeResult], Any] | None = None,
                  project: Callable[[NDArray], NDArray] | None = None) -> None:
@@ -68,7 +70,7 @@ class ParticleSwarm(PopulationSolver):
             raise error("chi", "a constriction factor in (0, 1)", str(chi), "The paper uses chi = 0.729.")
         self.c1 = check_positive(c1, "c1")
         self.c2 = check_positive(c2, "c2")
-        super().__init__(func, population, maxiter=maxiter, rng=rng, callback=callback, project=project,
+        super().__init__(func, init, maxiter=maxiter, rng=rng, callback=callback, project=project,
                          min_population=2)
         self.positions = self.population.copy()
         self.positions_fun = self.population_fun.copy()

@@ -1,0 +1,281 @@
+"""Settings of the search that refines linear fits, as one immutable, checked object.
+
+:class:`SearchOptions` holds everything DE, PSO and the L-BFGS polish need; it is checked once,
+when it is built. :data:`RECOMMENDED` is the recommended pipeline's search (``ipfit fit``'s
+default) and :data:`PAPER` the paper's exact one. A method-specific setting (DE's ``mutation``,
+PSO's ``chi``, the polish's ``polish_iterations``...) left at ``None`` takes the method's
+default; set explicitly for a method that does not use it, it is an error rather than being
+silently dropped (:meth:`SearchOptions.for_method`).
+
+The paper's exact pipeline is::
+
+    fit_adaptive(points, normals, method=PAPER_METHOD, options=PAPER, rule=PAPER_RULE)
+
+which is what ``ipfit fit --paper`` runs.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import warnings
+from dataclasses import dataclass
+from typing import Any, Callable, Mapping
+
+import numpy as np
+
+from .farfield import DEFAULT_TERM_WEIGHT
+from .objective import DEFAULT_DELTA
+from ._validation import check_choice, check_int, check_nonnegative, check_positive, check_probability, error
+
+__all__ = ["SearchOptions", "RECOMMENDED", "PAPER", "PAPER_METHOD", "PAPER_RULE", "DEFAULT_METHOD",
+           "DEFAULT_RULE", "DEFAULT_EPSILON", "DEFAULT_DELTA", "DEFAULT_ITERATIONS", "DEFAULT_START_FITS",
+           "REFINE_METHODS", "METHOD_DEFAULTS", "renamed_keywords"]
+
+#: Refinement methods: a metaheuristic with or without the L-BFGS polish stage, or the polish
+#: alone from the best start fit. "de" and "pso" are the paper's pure variants.
+REFINE_METHODS = ("de+polish", "pso+polish", "de", "pso", "polish")
+DEFAULT_METHOD = "de+polish"
+DEFAULT_RULE = "geometric"
+#: ε of Algorithm 1 and δ of the paper's distance (Eq. 5); the paper's values.
+DEFAULT_EPSILON = 0.01
+DEFAULT_ITERATIONS = 500
+PAPER_METHOD = "de"
+PAPER_RULE = "paper"
+
+#: The linear fits that start the population by default: each linear method at its default,
+#: and a few parameter variants so that the paper's N/10 start slots get distinct members.
+#: Names are ``method`` or ``method(param=value)``; see :func:`parse_start_fit`.
+DEFAULT_START_FITS = ("3l", "ridge", "gradient_one", "taubin", "lstsq", "3l(c=0.02)", "3l(c=0.1)",
+                      "ridge(kappa=1e-6)", "ridge(kappa=1e-3)", "gradient_one(mu=0.1)", "gradient_one(mu=10)")
+
+#: Defaults of the method-specific settings (the paper's DE and PSO parameters, Section 5.2).
+METHOD_DEFAULTS: Mapping[str, float | int] = {"mutation": 0.7, "recombination": 0.9, "chi": 0.729, "c1": 2.05,
+                                              "c2": 2.05, "polish_iterations": 1000}
+_USED_BY = {"mutation": ("de",), "recombination": ("de",), "chi": ("pso",), "c1": ("pso",), "c2": ("pso",),
+            "polish_iterations": ("polish",)}
+_START_PARAMS = {"3l": ("c", "far_row_weight"), "3l-far": ("c", "far_row_weight"),
+                 "ridge": ("c", "kappa", "far_row_weight"), "gradient_one": ("mu", "far_row_weight", "c"),
+                 "lstsq": (), "taubin": ()}
+
+
+def parse_start_fit(spec: str, name: str = "start_fits") -> tuple[str, dict[str, float]]:
+    """Split ``"ridge(kappa=1e-6)"`` into ``("ridge", {"kappa": 1e-6})``, checking both parts.
+
+    >>> parse_start_fit("3l(c=0.02)")
+    ('3l', {'c': 0.02})
+    """
+    if not isinstance(spec, str):
+        raise error(name, "linear method names such as '3l' or 'ridge(kappa=1e-6)'", repr(spec))
+    method, _, rest = spec.partition("(")
+    method = check_choice(method.strip(), name, _START_PARAMS)
+    params: dict[str, float] = {}
+    if rest:
+        if not rest.endswith(")"):
+            raise error(name, "'method(param=value, ...)'", repr(spec))
+        for item in filter(None, (part.strip() for part in rest[:-1].split(","))):
+            key, _, value = item.partition("=")
+            key = key.strip()
+            if key not in _START_PARAMS[method]:
+                allowed = ", ".join(_START_PARAMS[method]) or "no parameters"
+                raise error(name, f"parameters of {method} ({allowed})", repr(key))
+            try:
+                params[key] = float(value)
+            except ValueError:
+                raise error(name, f"a number for {key}", repr(value)) from None
+    return method, params
+
+
+@dataclass(frozen=True)
+class SearchOptions:
+    """How :func:`ipfit.refine` searches (and :func:`ipfit.fit_adaptive` at every degree).
+
+    Parameters
+    ----------
+    population_size : int, optional
+        Population (swarm) size P; default 4 × the number of coefficients (paper, Section 5.2).
+    iterations : int, default 500
+        Generations of DE/PSO (paper: 500).
+    mutation, recombination : float, optional
+        DE's differential weight F (default 0.7) and crossover probability CR (0.9), rand/1/bin.
+    chi, c1, c2 : float, optional
+        PSO's constriction factor χ (default 0.729) and accelerations (2.05, 2.05).
+    polish_iterations : int, optional
+        L-BFGS iterations of the polish stage (default 1000; 0 skips it).
+    start_fits : tuple of str
+        The linear fits that start the population (:data:`DEFAULT_START_FITS`); ``()`` starts
+        from random directions. With a far-field term, 3L with far-field rows joins them.
+    start_fraction : float, default 0.1
+        Share of the population that starts exactly at (or next to) the start fits (paper:
+        N/10); the others are scattered around them.
+    search_space : {"whitened", "coefficients"}
+        Coordinates the population moves in: "whitened" (y = R a, where every direction changes
+        f and ∇f on the data alike) or the raw coefficients (the paper).
+    far_term_weight : float, default 0.1
+        Weight of the far-field term added to the objective (:class:`ipfit.FarFieldTerm`),
+        which keeps the zero set from growing sheets away from the data; 0 is the paper's
+        objective exactly.
+    dtype : {"float64", "float32"}
+        Precision of the population evaluations (float32 is about twice as fast; start fits,
+        the polish and the reported measures always use float64).
+    n_solutions : int, default 5
+        How many best distinct solutions a refinement returns.
+
+    Examples
+    --------
+    >>> from ipfit import SearchOptions, PAPER
+    >>> SearchOptions(iterations=100).iterations
+    100
+    >>> PAPER.search_space, PAPER.far_term_weight
+    ('coefficients', 0.0)
+    >>> SearchOptions(chi=0.7).for_method("de")
+    Traceback (most recent call last):
+    ...
+    ipfit.exceptions.InvalidInputError: chi: expected a setting used by method 'de' (chi is used by pso), got chi=0.7. Leave it unset or pick a method that uses it.
+    """
+
+    population_size: int | None = None
+    iterations: int = DEFAULT_ITERATIONS
+    mutation: float | None = None
+    recombination: float | None = None
+    chi: float | None = None
+    c1: float | None = None
+    c2: float | None = None
+    polish_iterations: int | None = None
+    start_fits: tuple[str, ...] = DEFAULT_START_FITS
+    start_fraction: float = 0.1
+    search_space: str = "whitened"
+    far_term_weight: float = DEFAULT_TERM_WEIGHT
+    dtype: str = "float64"
+    n_solutions: int = 5
+
+    def __post_init__(self) -> None:
+        set_ = functools.partial(object.__setattr__, self)
+        if self.population_size is not None:
+            set_("population_size", check_int(self.population_size, "population_size", minimum=2))
+        set_("iterations", check_int(self.iterations, "iterations", minimum=0))
+        if self.mutation is not None:
+            value = check_positive(self.mutation, "mutation")
+            if value > 2:
+                raise error("mutation", "a differential weight in (0, 2]", str(value), "The paper uses 0.7.")
+            set_("mutation", value)
+        if self.recombination is not None:
+            set_("recombination", check_probability(self.recombination, "recombination"))
+        if self.chi is not None:
+            value = check_positive(self.chi, "chi")
+            if value >= 1:
+                raise error("chi", "a constriction factor in (0, 1)", str(value), "The paper uses 0.729.")
+            set_("chi", value)
+        for name in ("c1", "c2"):
+            if getattr(self, name) is not None:
+                set_(name, check_positive(getattr(self, name), name))
+        if self.polish_iterations is not None:
+            set_("polish_iterations", check_int(self.polish_iterations, "polish_iterations", minimum=0))
+        fits = self.start_fits
+        if isinstance(fits, str) or not isinstance(fits, (tuple, list)):
+            raise error("start_fits", "a tuple of linear method names", repr(fits), "Wrap one name in a tuple.")
+        for spec in fits:
+            parse_start_fit(spec)
+        set_("start_fits", tuple(fits))
+        set_("start_fraction", check_probability(self.start_fraction, "start_fraction"))
+        set_("search_space", check_choice(self.search_space, "search_space", ("whitened", "coefficients")))
+        set_("far_term_weight", check_nonnegative(self.far_term_weight, "far_term_weight"))
+        dtype = self.dtype
+        try:
+            dtype = np.dtype(dtype).name
+        except TypeError:
+            dtype = repr(dtype)
+        set_("dtype", check_choice(dtype, "dtype", ("float64", "float32")))
+        set_("n_solutions", check_int(self.n_solutions, "n_solutions", minimum=1))
+
+    def replace(self, **changes: Any) -> "SearchOptions":
+        """A copy with ``changes`` applied (and checked).
+
+        >>> RECOMMENDED.replace(iterations=50).iterations
+        50
+        """
+        unknown = sorted(set(changes) - {f.name for f in dataclasses.fields(self)})
+        if unknown:
+            raise error(unknown[0], "a SearchOptions field (" + ", ".join(f.name for f in dataclasses.fields(self))
+                        + ")", "an unknown name")
+        return dataclasses.replace(self, **changes)
+
+    def for_method(self, method: str) -> dict[str, Any]:
+        """Every setting resolved for ``method`` (one of :data:`REFINE_METHODS`).
+
+        A method-specific setting given explicitly for a method that does not use it raises
+        :class:`~ipfit.InvalidInputError`.
+        """
+        method = check_choice(method, "method", REFINE_METHODS)
+        stages = set(method.split("+"))
+        out = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+        for name, users in _USED_BY.items():
+            if out[name] is not None and not stages.intersection(users):
+                raise error(name, f"a setting used by method {method!r} ({name} is used by {', '.join(users)})",
+                            f"{name}={out[name]!r}", "Leave it unset or pick a method that uses it.")
+            if out[name] is None:
+                out[name] = METHOD_DEFAULTS[name]
+        if method == "polish" and not self.start_fits:
+            raise error("start_fits", "at least one start fit for method='polish'", "none",
+                        "Pass start fits or use 'de+polish'.")
+        return out
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready settings (tuples as lists)."""
+        return {f.name: (list(v) if isinstance(v := getattr(self, f.name), tuple) else v)
+                for f in dataclasses.fields(self)}
+
+
+#: The recommended pipeline's search: DE + polish in whitened coordinates, all start fits,
+#: with the far-field term.
+RECOMMENDED = SearchOptions()
+#: The paper's exact search: DE (F = 0.7, CR = 0.9, 500 iterations, population 4·d, N/10 started)
+#: in the raw coefficients, started from the classic and 3L fits, on the paper's distance.
+PAPER = SearchOptions(start_fits=("lstsq", "3l"), search_space="coefficients", far_term_weight=0.0)
+
+
+def renamed_keywords(**renames: Callable[[dict, Any], None]) -> Callable:
+    """Keep old keyword names working for one release, with a DeprecationWarning.
+
+    ``renames`` maps an old keyword to ``apply(kwargs, value)``, which rewrites the call's
+    keyword arguments (e.g. folds the value into ``options``). The wrapped function's
+    signature (``inspect.signature``) is the new one.
+    """
+
+    def decorate(func: Callable) -> Callable:
+        @functools.wraps(func)
+        def wrapper(*args, **kwargs):
+            old = [name for name in kwargs if name in renames]
+            for name in old:
+                value = kwargs.pop(name)
+                note = renames[name](kwargs, value)
+                warnings.warn(f"{func.__name__}({name}=...) is deprecated and will be removed in the next release; "
+                              f"{note}", DeprecationWarning, stacklevel=2)
+            return func(*args, **kwargs)
+
+        return wrapper
+
+    return decorate
+
+
+def into_options(field_name: str, default: SearchOptions = RECOMMENDED, convert: Callable[[Any], Any] | None = None):
+    """A :func:`renamed_keywords` rule that moves an old keyword into ``options.<field_name>``."""
+
+    def apply(kwargs: dict, value: Any) -> str:
+        base = kwargs.get("options") or default
+        kwargs["options"] = base.replace(**{field_name: convert(value) if convert else value})
+        return f"use options=SearchOptions({field_name}=...)."
+
+    return apply
+
+
+def into_keyword(new_name: str):
+    """A :func:`renamed_keywords` rule for a plain rename of a keyword."""
+
+    def apply(kwargs: dict, value: Any) -> str:
+        if new_name in kwargs:
+            raise error(new_name, "either the new or the deprecated keyword", "both")
+        kwargs[new_name] = value
+        return f"use {new_name}=... instead."
+
+    return apply

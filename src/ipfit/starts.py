@@ -1,0 +1,139 @@
+"""Where a refinement starts: the linear fits (and user polynomials) that seed the population.
+
+The paper seeds N/10 of the population with linear fits so that the metaheuristic
+post-optimises them. Here the start fits are evaluated one at a time in float64, sorted best
+first, and the population is built around them.
+"""
+
+from __future__ import annotations
+
+import warnings
+from typing import Sequence
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from . import basis
+from ._numeric import unit_rows
+from ._validation import error
+from .exceptions import IpfitError
+from .linear import DEFAULT_FAR_ROW_WEIGHT, fit_linear
+from .options import parse_start_fit
+from .polynomial import ImplicitPolynomial, Normalization
+
+__all__ = ["StartFits", "start_fits", "initial_population"]
+
+# Unstarted members begin at start fits perturbed by a relative amount drawn log-uniformly in
+# this range, measured in the whitened coordinates (see Objective.whitening), where 0.1 means
+# "changes the values and gradients on the data by 10% of the start fit's".
+_SPREAD = (1e-3, 0.3)
+FAR_START = "3l-far"
+
+
+class StartFits:
+    """Start fits in the normalised coordinates, best first once :meth:`rank` has run."""
+
+    def __init__(self, labels: list[str], coefficients: NDArray, notes: list[str]) -> None:
+        # Unique labels: distances are reported by label.
+        self.labels = [lab if labels.count(lab) == 1 else f"{lab}#{k}" for k, lab in enumerate(labels)]
+        self.coefficients = unit_rows(coefficients) if len(coefficients) else coefficients
+        self.notes = notes
+        self.distances = np.empty(0)
+
+    def __len__(self) -> int:
+        return len(self.labels)
+
+    def rank(self, objective) -> int:
+        """Evaluate each start fit exactly as the returned polynomial is measured (one vector at
+        a time, float64), so "never above the best start fit" holds to the last bit; sort best
+        first. Returns the number of evaluations."""
+        if not len(self):
+            return 0
+        values = np.array([objective(a)[0] for a in self.coefficients])
+        order = np.argsort(values, kind="stable")
+        self.coefficients, self.distances = self.coefficients[order], values[order]
+        self.labels = [self.labels[i] for i in order]
+        return len(values)
+
+    def distance_by_label(self) -> dict[str, float]:
+        return dict(zip(self.labels, map(float, self.distances)))
+
+
+def _linear(points, normals, degree, norm: Normalization, specs: Sequence[str]):
+    labels, coefs, notes = [], [], []
+    for spec in specs:
+        method, params = parse_start_fit(spec)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            try:
+                poly = fit_linear(points, normals, degree, method, **params)
+            except IpfitError as exc:
+                notes.append(f"start fit {spec} failed: {exc}")
+                continue
+        notes.extend(f"start fit {spec}: {w.message}" for w in caught)
+        if not np.allclose(poly.center, norm.center) or not np.isclose(poly.scale, norm.scale):
+            # Linear fits normalise like Normalization.from_points; anything else is a bug.
+            raise AssertionError(f"start fit {spec} uses another normalisation")
+        labels.append(spec)
+        coefs.append(poly.coefficients)
+    return labels, coefs, notes
+
+
+def _given(starts, dim: int, degree: int, norm: Normalization, d: int):
+    labels, coefs = [], []
+    if isinstance(starts, (str, ImplicitPolynomial)) or (isinstance(starts, np.ndarray) and starts.ndim == 1):
+        raise error("starts", "a sequence of start polynomials", type(starts).__name__, "Wrap one start in a list.")
+    for k, start in enumerate(starts):
+        if isinstance(start, ImplicitPolynomial):
+            if start.n_coefficients != d or start.dim != dim:
+                raise error(f"starts[{k}]", f"a degree-{degree} {dim}D polynomial",
+                            f"degree {start.degree} in {start.dim}D")
+            if not (np.allclose(start.center, norm.center, rtol=1e-12, atol=1e-12 * norm.scale)
+                    and np.isclose(start.scale, norm.scale, rtol=1e-12)):
+                raise error(f"starts[{k}]", "a polynomial fitted to the same points (same normalisation)",
+                            "another normalisation", "Fit it with ipfit's linear fits on these points.")
+            labels.append(start.method or f"start{k}")
+            coefs.append(start.coefficients)
+        else:
+            try:
+                arr = np.asarray(start, dtype=np.float64)
+            except (TypeError, ValueError):
+                arr = np.empty(0)
+            if arr.shape != (d,) or not np.isfinite(arr).all() or not np.any(arr):
+                raise error(f"starts[{k}]", f"an ImplicitPolynomial or {d} finite coefficients (not all zero) in "
+                            "the normalised coordinates", f"shape {arr.shape}")
+            labels.append(f"start{k}")
+            coefs.append(arr)
+    return labels, coefs
+
+
+def start_fits(points: NDArray, unit_normals: NDArray, degree: int, norm: Normalization, names: Sequence[str],
+               starts: Sequence[ImplicitPolynomial | ArrayLike] | None, far_term: bool) -> StartFits:
+    """The user's polynomials first, then the named linear fits (3L with far-field rows added
+    when the objective has a far-field term: it starts the search nearer clean zero sets)."""
+    d = basis.n_coefficients(points.shape[1], degree)
+    labels, coefs = _given(starts, points.shape[1], degree, norm, d) if starts is not None else ([], [])
+    names = list(names)
+    if far_term and names and FAR_START not in names:
+        names.append(f"{FAR_START}(far_row_weight={DEFAULT_FAR_ROW_WEIGHT:g})")
+    lin_labels, lin_coefs, notes = _linear(points, unit_normals, degree, norm, names)
+    labels = [*labels, *(FAR_START if lab.startswith(FAR_START + "(") else lab for lab in lin_labels)]
+    return StartFits(labels, np.array(coefs + lin_coefs).reshape(-1, d), notes)
+
+
+def initial_population(start_y: NDArray, size: int, n_started: int, rng: np.random.Generator) -> NDArray:
+    """Start fits first (the best ones exactly), the rest scattered around random start fits."""
+    d = start_y.shape[1]
+    pop = np.empty((size, d))
+    n_exact = min(n_started, start_y.shape[0])
+    pop[:n_exact] = start_y[:n_exact]
+    # Extra started slots (more slots than distinct start fits) repeat them with a tiny jitter,
+    # so DE's difference vectors between them are not zero.
+    n_jitter = n_started - n_exact
+    base = np.concatenate([np.arange(n_jitter) % start_y.shape[0],
+                           rng.integers(start_y.shape[0], size=size - n_started)]).astype(np.int64)
+    lo, hi = np.log(_SPREAD[0]), np.log(_SPREAD[1])
+    scale = np.concatenate([np.full(n_jitter, _SPREAD[0]), np.exp(rng.uniform(lo, hi, size - n_started))])
+    noise = rng.standard_normal((size - n_exact, d)) / np.sqrt(d)
+    pop[n_exact:] = start_y[base] + scale[:, None] * noise
+    return unit_rows(pop)
