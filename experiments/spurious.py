@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 import ipfit
+from ipfit import RECOMMENDED
 from ipfit.adaptive import fit_adaptive
 from ipfit.datasets import bundled, synthetic
 from ipfit.quality import quality
@@ -79,16 +80,18 @@ def _q(poly, pts, faces, contour):
 
 def run(iterations: int, quick: bool) -> list[dict]:
     rows = []
+    no_term = RECOMMENDED.replace(far_term_weight=0.0, iterations=iterations)
     for name, pts, nrm, faces, contour in shapes(quick):
         t0 = time.perf_counter()
-        default = fit_adaptive(pts, nrm, faces=faces, ordered_contour=contour, rng=0, iterations=iterations)
+        default = fit_adaptive(pts, nrm, faces=faces, ordered_contour=contour, rng=0,
+                               options=RECOMMENDED.replace(iterations=iterations))
         t_default = time.perf_counter() - t0
         g = default.selected_degree
         t0 = time.perf_counter()
-        paper = fit_adaptive(pts, nrm, method="de", rule="paper", far_weight=0.0, rng=0, iterations=iterations)
+        paper = fit_adaptive(pts, nrm, method="de", rule="paper", rng=0, options=no_term)
         t_paper = time.perf_counter() - t0
         plain = ipfit.fit_3l(pts, nrm, g)
-        de = refine(pts, nrm, g, method="de", rng=0, iterations=iterations)
+        de = refine(pts, nrm, g, method="de", rng=0, options=no_term)
         rows.append({
             "shape": name, "n": int(len(pts)), "degree": g, "paper_degree": paper.selected_degree,
             "3l": _q(plain, pts, faces, contour), "de": _q(de.polynomial, pts, faces, contour),
