@@ -119,3 +119,19 @@ def prepare_output_dir(prefix: Path) -> None:
 
 def show_progress(quiet: bool) -> bool:
     return not quiet and sys.stderr.isatty()
+
+
+@contextlib.contextmanager
+def cli_names(names: dict[str, str]):
+    """Re-raise library errors that start with a parameter name under the option the user typed.
+
+    ``max_degree: expected at most 22 ...`` becomes ``--max-degree: expected at most 22 ...``.
+    """
+    try:
+        yield
+    except InvalidInputError as exc:
+        text = str(exc)
+        head, sep, rest = text.partition(":")
+        if sep and head in names:
+            raise InvalidInputError(f"{names[head]}:{rest}") from None
+        raise

@@ -10,8 +10,14 @@ from pathlib import Path
 
 import numpy as np
 
-from ._common import (OutputSet, finite_float, load_input, nonnegative_float, nonnegative_int, positive_int,
-                      prepare_output_dir, show_progress)
+from ._common import (OutputSet, cli_names, finite_float, load_input, nonnegative_float, nonnegative_int,
+                      positive_int, prepare_output_dir)
+from ._progress import Progress, progress_mode
+
+# Library parameter -> the option the user typed, for error messages.
+_OPTION_NAMES = {"max_degree": "--max-degree", "min_degree": "--degree", "rng": "--seed", "epsilon": "--epsilon",
+                 "delta": "--delta", "iterations": "--iterations", "population_size": "--population",
+                 "far_term_weight": "--far-term-weight", "method": "--method", "rule": "--rule"}
 
 NAME = "fit"
 HELP = "fit an implicit polynomial to a point file or a bundled dataset"
@@ -101,34 +107,6 @@ def search_settings(args: argparse.Namespace):
     return method, options.replace(**changes) if changes else options, rule
 
 
-class _Progress:
-    def __init__(self, enabled: bool, iterations: int | None) -> None:
-        self.enabled = enabled
-        self.iterations = iterations
-        self._last = 0.0
-
-    def __call__(self, event: dict) -> None:
-        if not self.enabled:
-            return
-        kind = event.get("event")
-        if kind == "degree_start":
-            sys.stderr.write(f"\rdegree {event['degree']}: fitting...{' ' * 30}")
-        elif kind == "iteration":
-            now = time.monotonic()
-            if now - self._last < 0.1:
-                return
-            self._last = now
-            total = f"/{self.iterations}" if self.iterations else ""
-            fun = event.get("fun")
-            best = f", best distance {fun:.5f}" if fun is not None else ""
-            sys.stderr.write(f"\rdegree {event['degree']}: iteration {event.get('nit', '?')}{total}{best}   ")
-        elif kind == "degree_done":
-            sys.stderr.write(f"\rdegree {event['degree']}: distance {event['distance']:.5f}, smoothness "
-                             f"{event['smoothness']:.4f}, dissimilarity {event['dissimilarity']:.5f} "
-                             f"({event['seconds']:.1f} s)\n")
-        sys.stderr.flush()
-
-
 def _parse_degree(text: str, dim: int) -> int | None:
     from ..exceptions import InvalidInputError
 
@@ -140,6 +118,11 @@ def _parse_degree(text: str, dim: int) -> int | None:
         raise InvalidInputError(f"--degree: expected 'auto' or a whole number, got {text!r}.") from None
     if value < 1:
         raise InvalidInputError(f"--degree: expected a degree >= 1, got {value}.")
+    if value % 2:
+        # Accepted (a user may want it), but said: the highest-degree part of an odd-degree
+        # polynomial changes sign, so its zero set always runs off to infinity.
+        print(f"ipfit fit: warning: --degree {value} is odd: an odd-degree zero set is never bounded (it always "
+              "reaches infinity); use an even degree for a closed curve or surface.", file=sys.stderr)
     return value
 
 
@@ -165,19 +148,29 @@ def run(args: argparse.Namespace) -> int:
         source = "estimated"
     prefix = Path(args.output) if args.output else Path(data.label)
     method, options, rule = search_settings(args)
-    progress = _Progress(show_progress(args.quiet), options.iterations if options is not None else None)
+    resolved = options.for_method(method) if options is not None else {}
+    progress = Progress(progress_mode(args.quiet), resolved.get("iterations"), resolved.get("polish_iterations"))
     lo = degree if degree is not None else 2
     hi = degree if degree is not None else args.max_degree
-    result = fit_adaptive(points, normals, method=method, options=options, min_degree=lo, max_degree=hi,
-                          epsilon=args.epsilon, delta=args.delta, rule=rule, faces=data.faces, rng=args.seed,
-                          progress=progress)
+    try:
+        with cli_names(_OPTION_NAMES):
+            result = fit_adaptive(points, normals, method=method, options=options, min_degree=lo, max_degree=hi,
+                                  epsilon=args.epsilon, delta=args.delta, rule=rule, faces=data.faces, rng=args.seed,
+                                  progress=progress)
+    finally:
+        progress.close()
     payload = result.to_dict()
     payload["input"] = {"source": str(args.input), "n_points": int(len(points)), "normals": source}
+    if Path(args.input).exists():  # found again by ipfit plot/mesh/score from any folder
+        payload["input"]["path"] = str(Path(args.input).resolve())
     payload["bounds"] = np.column_stack([points.min(axis=0), points.max(axis=0)]).tolist()
     _write_outputs(prefix, payload, result, points, data, args)
     if not args.quiet:
         table = ", ".join(f"{d.degree}: {d.smoothness:.4f}" for d in result.degrees)
-        print(f"selected degree {result.selected_degree} ({result.reason}); smoothness by degree {table}")
+        if result.reason == "fixed":
+            print(f"fixed degree {result.selected_degree}: smoothness {table.split(': ')[1]}")
+        else:
+            print(f"selected {result.message}; smoothness by degree {table}")
         print(f"wrote {prefix}.json" + ("" if args.no_picture else f", {prefix}.png")
               + ("" if args.no_zero_set else (f", {prefix}.ply" if dim == 3 else f", {prefix}.svg, {prefix}.csv")))
     return 130 if result.reason == "interrupted" else 0

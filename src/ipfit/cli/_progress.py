@@ -1,0 +1,106 @@
+"""Progress of a fit on the terminal: a rich progress bar on a TTY, plain lines when piped.
+
+Each stage is shown with its own counter and the quantity it minimises, named as in the
+result JSON: the start fits, DE/PSO and the L-BFGS polish minimise the *objective* (the
+paper's distance plus the far-field term, ``info.objective``); a finished degree reports the
+paper's *distance* (``measures.distance``), which is lower than the objective when the term is
+on.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from typing import TextIO
+
+__all__ = ["Progress", "progress_mode"]
+
+STAGES = {"de": "DE", "pso": "PSO", "polish": "L-BFGS polish"}
+
+
+def progress_mode(quiet: bool, stream: TextIO | None = None) -> str:
+    """'off' with --quiet, 'bar' on a terminal, 'lines' when stderr is piped or a file."""
+    stream = sys.stderr if stream is None else stream
+    if quiet:
+        return "off"
+    return "bar" if stream.isatty() else "lines"
+
+
+class Progress:
+    """Receives ``fit_adaptive``'s progress events and shows them."""
+
+    def __init__(self, mode: str, iterations: int | None, polish_iterations: int | None = None,
+                 stream: TextIO | None = None) -> None:
+        self.mode = mode
+        self.stream = sys.stderr if stream is None else stream
+        self.totals = {"de": iterations, "pso": iterations, "polish": polish_iterations}
+        self._bar = None
+        self._task = None
+        self._stage = None
+        self._degree = None
+        self._last = 0.0
+
+    # -- events ------------------------------------------------------------------------------
+    def __call__(self, event: dict) -> None:
+        if self.mode == "off":
+            return
+        kind = event.get("event")
+        if kind == "degree_start":
+            self._degree, self._stage = event["degree"], None
+            self._line(f"degree {event['degree']}: fitting")
+        elif kind == "iteration":
+            self._iteration(event)
+        elif kind == "degree_done":
+            self._close_bar()
+            self._line(f"degree {event['degree']}: distance {event['distance']:.5f}, smoothness "
+                       f"{event['smoothness']:.4f}, dissimilarity {event['dissimilarity']:.5f} "
+                       f"({event['seconds']:.1f} s)")
+
+    def close(self) -> None:
+        self._close_bar()
+
+    # -- internals -------------------------------------------------------------------------------
+    def _iteration(self, event: dict) -> None:
+        stage = event.get("stage", "de")
+        if stage != self._stage:
+            self._close_bar()
+            self._stage = stage
+            self._open(stage)
+        if self.mode == "bar" and self._bar is not None:
+            self._bar.update(self._task, completed=event.get("nit", 0),
+                             objective=f"{event.get('fun', float('nan')):.5f}")
+            return
+        now = time.monotonic()
+        if now - self._last >= 5.0:  # piped: a line every few seconds at most
+            self._last = now
+            total = self.totals.get(stage)
+            count = f"{event.get('nit', '?')}/{total}" if total else f"{event.get('nit', '?')}"
+            self._line(f"degree {self._degree}: {STAGES.get(stage, stage)} iteration {count}, objective "
+                       f"{event.get('fun', float('nan')):.5f}")
+
+    def _open(self, stage: str) -> None:
+        if self.mode != "bar":
+            self._line(f"degree {self._degree}: {STAGES.get(stage, stage)}")
+            self._last = time.monotonic()
+            return
+        from rich.console import Console
+        from rich.progress import BarColumn, MofNCompleteColumn, Progress as Bar, TextColumn, TimeElapsedColumn
+
+        self._bar = Bar(TextColumn("degree {task.fields[degree]}: {task.description}"), BarColumn(),
+                        MofNCompleteColumn(), TextColumn("objective {task.fields[objective]}"), TimeElapsedColumn(),
+                        console=Console(file=self.stream), transient=True)
+        self._bar.start()
+        self._task = self._bar.add_task(STAGES.get(stage, stage), total=self.totals.get(stage),
+                                        degree=self._degree, objective="…")
+
+    def _close_bar(self) -> None:
+        if self._bar is not None:
+            self._bar.stop()
+            self._bar = None
+
+    def _line(self, text: str) -> None:
+        if self._bar is not None:
+            self._bar.console.print(text)
+        else:
+            self.stream.write(text + "\n")
+            self.stream.flush()
