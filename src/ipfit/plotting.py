@@ -41,7 +41,7 @@ SURFACE_COLOR = (0.55, 0.70, 0.92)
 POINT_COLOR = "0.45"
 METHOD_TITLES = {"lstsq": "classic linear", "3l": "3L", "ridge": "3L + ridge", "taubin": "Taubin",
                  "gradient_one": "gradient-one", "de": "DE", "pso": "PSO", "de+polish": "DE + polish",
-                 "pso+polish": "PSO + polish"}
+                 "pso+polish": "PSO + polish", "polish": "polish (L-BFGS from the best seed)"}
 _PLOT_RESOLUTION = {2: 400, 3: 72}
 
 

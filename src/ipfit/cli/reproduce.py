@@ -1,4 +1,4 @@
-"""``ipfit reproduce --out DIR``: rerun the paper's experiments and write the report."""
+"""``ipfit reproduce -o DIR``: rerun the paper's experiments and write the report."""
 
 from __future__ import annotations
 
@@ -6,6 +6,7 @@ import argparse
 import shlex
 import sys
 
+from ..reproduce import CONFIGS, DATASETS, DEFAULT_CONFIG, EXPERIMENTS, reproduce
 from ._common import nonnegative_int
 
 NAME = "reproduce"
@@ -29,9 +30,9 @@ half a minute whose numbers mean nothing.
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    from ..reproduce import CONFIGS, DATASETS, DEFAULT_CONFIG, EXPERIMENTS
-
-    parser.add_argument("--out", required=True, metavar="DIR", help="output folder (created)")
+    # --out: the option's name before the commands agreed on -o/--output (kept for scripts)
+    parser.add_argument("-o", "--output", "--out", dest="output", required=True, metavar="DIR",
+                        help="output folder (created); --out is an older spelling")
     mode = parser.add_mutually_exclusive_group()
     for name, cfg in CONFIGS.items():
         mode.add_argument(f"--{name}", dest="config", action="store_const", const=name,
@@ -46,28 +47,24 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..reproduce import reproduce
-
     def log(line: str) -> None:
         print(line, file=sys.stderr, flush=True)
 
     command = "ipfit reproduce " + " ".join(shlex.quote(a) for a in _argv(args))
-    results = reproduce(args.out, args.config, seed=args.seed, only=args.only, datasets=args.datasets,
+    results = reproduce(args.output, args.config, seed=args.seed, only=args.only, datasets=args.datasets,
                         log=None if args.quiet else log, command=command)
     if not args.quiet:
         counts = {}
         for row in results["summary"]:
             counts[row["verdict"]] = counts.get(row["verdict"], 0) + 1
-        print(f"wrote {args.out}/README.md ({len(results['figures'])} figures); claims: "
+        print(f"wrote {args.output}/README.md ({len(results['figures'])} figures); claims: "
               + ", ".join(f"{v} {k}" for k, v in counts.items()))
     return 0
 
 
 def _argv(args: argparse.Namespace) -> list[str]:
     """The options as a canonical command line (recorded in the report)."""
-    from ..reproduce import DEFAULT_CONFIG
-
-    out = ["--out", str(args.out)]
+    out = ["--output", str(args.output)]
     if args.config != DEFAULT_CONFIG:
         out.append(f"--{args.config}")
     if args.seed:
