@@ -99,7 +99,7 @@ def test_paper_flag_refuses_the_options_it_fixes(tmp_path, capsys):
     (["fit", "boot", "--method", "annealing"], "argument --method: invalid choice"),
     (["fit", "boot", "--iterations", "0"], "argument --iterations: expected a whole number >= 1"),
     (["fit", "airplane", "--degree", "30"], "--degree: degree 30 needs at least 496 points, the input has 200"),
-    (["fit", "airplane", "--max-degree", "24", "--method", "3l"], "max_degree: expected at most 18 for 200 points"),
+    (["fit", "airplane", "--max-degree", "24", "--method", "3l"], "--max-degree: expected at most 18 for 200 points"),
     (["fit", "airplane", "--method", "3l", "--far-term-weight", "0.5"], "--far-term-weight: method '3l' is a linear fit"),
 ])
 def test_bad_input_exits_2_with_one_line_and_no_output(tmp_path, capsys, argv, message):

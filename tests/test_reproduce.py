@@ -17,11 +17,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import ipfit
+
 from ipfit import reproduce as rep
 from ipfit.cli import build_parser, main
 from ipfit.exceptions import InvalidInputError
 from ipfit.polynomial import to_jsonable
-from ipfit.reproduce.runs import search_params
+from ipfit.reproduce.runs import search_options
 from ipfit.reproduce.verdicts import acceptable_deltas
 
 
@@ -33,7 +35,9 @@ def test_full_is_the_papers_setting_and_quick_is_smaller_everywhere():
     # Section 5 of the paper: 500 iterations, δ = 0.25, population 4 × coefficients, classic and 3L seeds
     assert (full.iterations, full.delta, full.population, full.seeds) == (500, 0.25, None, ("lstsq", "3l"))
     assert set(full.epsilons) == {0.0, 0.01} and full.datasets == rep.DATASETS
-    assert search_params(full) == {"iterations": 500, "far_weight": 0.0, "seeds": ["lstsq", "3l"]}
+    opts = search_options(full)
+    assert (opts.iterations, opts.far_term_weight, opts.start_fits, opts.population_size) == (500, 0.0, ("lstsq", "3l"),
+                                                                                             None)
     for field in ("iterations", "max_degree_2d", "max_degree_3d", "points_3d", "delta_seeds",
                   "quality_resolution_3d", "quality_max_samples", "plot_resolution_2d", "plot_resolution_3d"):
         assert getattr(quick, field) < getattr(full, field), field
@@ -45,12 +49,14 @@ def test_full_is_the_papers_setting_and_quick_is_smaller_everywhere():
         assert getattr(quick, field) == getattr(full, field), field
 
 
-def test_get_config_and_search_params():
+def test_get_config_and_search_options():
     assert rep.get_config() is rep.CONFIGS["full"]
     assert rep.get_config("quick", ["bunny", "airplane"]).datasets == ("airplane", "bunny")
     custom = rep.Config(name="x", description="", iterations=7, population=30, seeds=None)
     assert rep.get_config(custom) is custom
-    assert search_params(custom) == {"iterations": 7, "far_weight": 0.0, "population": 30}
+    opts = search_options(custom)
+    assert (opts.iterations, opts.far_term_weight, opts.population_size) == (7, 0.0, 30)
+    assert opts.start_fits == ipfit.RECOMMENDED.start_fits
     with pytest.raises(InvalidInputError, match="config"):
         rep.get_config("fast")
     with pytest.raises(InvalidInputError, match="--datasets.*'cat'"):
@@ -399,11 +405,11 @@ def test_quick_run_adaptive_paths_are_the_library_adaptive_runs(quick_run):
     cfg = rep.CONFIGS["quick"]
     seed = results["run"]["seed"]
     data = rep.prepare_data("airplane", cfg, seed)
-    params = search_params(cfg)
-    assert params.pop("far_weight") == 0.0  # the paper's objective
+    opts = search_options(cfg)
+    assert opts.far_term_weight == 0.0  # the paper's objective
     direct = fit_adaptive(data.points, data.normals, method="de", epsilon=rep.PATH_EPSILON, delta=cfg.delta,
                           max_degree=4, rng=rep.rng_for(seed, "adaptive", "airplane", "de"), rule="paper",
-                          far_weight=0.0, **params)
+                          options=opts)
     saved = results["adaptive"]["datasets"]["airplane"]["runs"]["de"]["path"]
     assert [d.smoothness for d in direct.degrees] == [p["smoothness"] for p in saved[:2]]
     assert [d.distance for d in direct.degrees] == [p["distance"] for p in saved[:2]]

@@ -8,9 +8,10 @@ the whole path and take another degree.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass
-from typing import Callable, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -70,6 +71,7 @@ class DegreeResult:
     seconds: float
     quality: Quality | None = None
     solutions: tuple[ImplicitPolynomial, ...] = ()
+    cleanup: tuple[Mapping[str, Any], ...] = ()
 
     @property
     def dissimilarity(self) -> float:
@@ -96,6 +98,8 @@ class DegreeResult:
                "nfev": self.nfev, "success": self.success, "message": self.message}
         if self.quality is not None:
             out["quality"] = self.quality.to_dict()
+        if self.cleanup:
+            out["cleanup"] = [dict(attempt) for attempt in self.cleanup]
         return out
 
 
@@ -212,13 +216,14 @@ FitFunction = Callable[..., ImplicitPolynomial]
 
 
 class _Fitter:
-    """Fits one degree with the chosen method; refinement settings resolved once."""
+    """Fits one degree with the chosen method; warm-starts each degree from the previous one."""
 
     def __init__(self, method, options: SearchOptions | None, delta: float, rng, progress) -> None:
         self.method, self.delta, self.rng, self.progress = method, delta, rng, progress
         self.options = options
+        self.previous: ImplicitPolynomial | None = None
 
-    def __call__(self, points, normals, degree):
+    def __call__(self, points, normals, degree, options: SearchOptions | None = None, extra_starts=()):
         if callable(self.method):
             poly = self.method(points, normals, degree)
             if not isinstance(poly, ImplicitPolynomial):
@@ -226,15 +231,27 @@ class _Fitter:
             return poly, (), 0, 0, True, "custom fit"
         if self.method in LINEAR_METHODS:
             return fit_linear(points, normals, degree, self.method), (), 0, 0, True, "linear fit"
+        options = options or self.options
 
         def report(state):
             self.progress({"event": "iteration", "degree": degree, "stage": state.message, "nit": state.nit,
                            "fun": state.fun})
 
-        result = refine(points, normals, degree, method=self.method, options=self.options, delta=self.delta,
-                        rng=self.rng, callback=report if self.progress is not None else None)
+        starts = list(extra_starts)
+        if options.warm_start and self.previous is not None and self.previous.degree < degree:
+            starts.append(_embed(self.previous, degree))
+        result = refine(points, normals, degree, method=self.method, options=options, delta=self.delta,
+                        starts=starts or None, rng=self.rng, callback=report if self.progress is not None else None)
         return (result.polynomial, tuple(result.solutions), result.nit, result.nfev, result.success,
                 result.message)
+
+
+def _embed(poly: ImplicitPolynomial, degree: int) -> NDArray[np.float64]:
+    """The coefficients of ``poly`` at a higher degree: graded order lists every lower-degree
+    monomial first, so the same polynomial is its coefficients followed by zeros."""
+    out = np.zeros(basis.n_coefficients(poly.dim, degree))
+    out[: poly.n_coefficients] = poly.coefficients
+    return out
 
 
 def _check_progress(progress):
@@ -335,11 +352,14 @@ def fit_adaptive(points: ArrayLike, normals: ArrayLike | None = None, *, method:
             progress({"event": "degree_start", "degree": degree})
         try:
             entry = _fit_degree(fitter, pts, unit, degree, delta, rule, faces, ordered_contour)
+            if rule == "geometric" and not entry.clean and fitter.options is not None:
+                entry = _clean_up(entry, fitter, pts, unit, delta, faces, ordered_contour)
         except KeyboardInterrupt:
             if not results:
                 raise
             reason = "interrupted"
             break
+        fitter.previous = entry.polynomial
         results.append(entry)
         if progress is not None:
             progress({"event": "degree_done", **entry.to_dict()})
@@ -373,9 +393,29 @@ def _top_degree(n_points: int, dim: int, min_degree: int, max_degree: int | None
     return top
 
 
-def _fit_degree(fitter: _Fitter, pts, unit, degree, delta, rule, faces, ordered_contour) -> DegreeResult:
+def _clean_up(entry: DegreeResult, fitter: _Fitter, pts, unit, delta, faces, ordered_contour) -> DegreeResult:
+    """Refit a degree whose zero set is not clean with stronger far-field terms, started from
+    its fit; the first clean refit replaces it. Every attempt is recorded."""
+    attempts, best, nfev = [], entry, entry.nfev
+    for weight in fitter.options.cleanup_weights:
+        options = fitter.options.replace(far_term_weight=weight)
+        trial = _fit_degree(fitter, pts, unit, entry.degree, delta, "geometric", faces, ordered_contour,
+                            options=options, extra_starts=[entry.x])
+        q = trial.quality
+        nfev += trial.nfev
+        attempts.append({"far_term_weight": weight, "clean": trial.clean, "f_score": q.f_score,
+                         "n_spurious": q.n_spurious, "closed": bool(q.closed), "seconds": trial.seconds})
+        if trial.clean:
+            best = trial
+            break
+    seconds = entry.seconds + sum(a["seconds"] for a in attempts)
+    return dataclasses.replace(best, cleanup=tuple(attempts), seconds=seconds, nfev=nfev)
+
+
+def _fit_degree(fitter: _Fitter, pts, unit, degree, delta, rule, faces, ordered_contour, *, options=None,
+                extra_starts=()) -> DegreeResult:
     t0 = time.perf_counter()
-    poly, solutions, nit, nfev, success, message = fitter(pts, unit, degree)
+    poly, solutions, nit, nfev, success, message = fitter(pts, unit, degree, options, extra_starts)
     m = compute_measures(poly, pts, unit, delta=delta)
     poly = poly.with_coefficients(poly.coefficients, measures=m.to_dict())
     q = quality(poly, pts, faces=faces, ordered_contour=ordered_contour) if rule == "geometric" else None

@@ -89,12 +89,15 @@ class _Problem:
 
 
 def _prepare(points: ArrayLike, normals: ArrayLike | None, degree, *, method: str,
-             needs_normals: bool) -> _Problem:
+             needs_normals: bool, normalization: Normalization | None = None) -> _Problem:
     degree = check_degree(degree)
     pts = as_points(points)
     check_enough_points(pts.shape[0], pts.shape[1], degree)
     unit = as_normals(normals, pts, required_by=method if needs_normals else None)
-    norm = Normalization.from_points(pts)
+    if normalization is not None and (not isinstance(normalization, Normalization)
+                                      or normalization.dim != pts.shape[1]):
+        raise error("normalization", f"a {pts.shape[1]}D Normalization", repr(normalization))
+    norm = Normalization.from_points(pts) if normalization is None else normalization
     return _Problem(norm.apply(pts), unit, norm, degree)
 
 
@@ -271,7 +274,7 @@ LINEAR_METHODS: dict[str, _Method] = {
 }
 
 
-def _fit(method: str, points, normals, degree, **params) -> ImplicitPolynomial:
+def _fit(method: str, points, normals, degree, normalization=None, **params) -> ImplicitPolynomial:
     checks = _PARAMS[method]
     for name in params:
         if name not in checks:
@@ -279,7 +282,8 @@ def _fit(method: str, points, normals, degree, **params) -> ImplicitPolynomial:
             raise error(name, f"a parameter of the {method!r} fit ({allowed})", "an unknown name")
     params = {name: checks[name](value) for name, value in params.items()}
     spec = LINEAR_METHODS[method]
-    problem = _prepare(points, normals, degree, method=f"fit_{method}", needs_normals=spec.needs_normals)
+    problem = _prepare(points, normals, degree, method=f"fit_{method}", needs_normals=spec.needs_normals,
+                       normalization=normalization)
     try:
         with np.errstate(all="ignore"):
             coef, info = spec.solve(problem, **{**dict(spec.defaults), **params})
@@ -418,11 +422,14 @@ def fit_gradient_one(points: ArrayLike, normals: ArrayLike, degree: int, mu: flo
 
 
 @_RENAMED
-def fit_linear(points: ArrayLike, normals: ArrayLike | None, degree: int, method: str = "3l",
-               **params: float) -> ImplicitPolynomial:
+def fit_linear(points: ArrayLike, normals: ArrayLike | None, degree: int, method: str = "3l", *,
+               normalization: Normalization | None = None, **params: float) -> ImplicitPolynomial:
     """Dispatch to one of :data:`LINEAR_METHODS` by name (``'lstsq'``, ``'taubin'``, ``'3l'``,
     ``'ridge'``, ``'gradient_one'``, or ``'3l-far'``: 3L with far-field rows at the default
     row weight), with that method's parameters (``c``, ``kappa``, ``mu``, ``far_row_weight``).
+
+    ``normalization`` fits in given normalised coordinates instead of the points' own (e.g.
+    on a subsample, in the coordinates of the whole cloud).
 
     >>> from ipfit import fit_linear
     >>> from ipfit.datasets.synthetic import circle
@@ -431,4 +438,4 @@ def fit_linear(points: ArrayLike, normals: ArrayLike | None, degree: int, method
     'ridge'
     """
     method = check_choice(method, "method", LINEAR_METHODS)
-    return _fit(method, points, normals, degree, **params)
+    return _fit(method, points, normals, degree, normalization, **params)

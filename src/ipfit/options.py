@@ -120,6 +120,22 @@ class SearchOptions:
         the polish and the reported measures always use float64).
     n_solutions : int, default 5
         How many best distinct solutions a refinement returns.
+    search_points : int or None, default 3000
+        DE/PSO evaluate the population on a well-spread subsample of this many points
+        (:func:`ipfit.sampling.spread_subsample`, fixed seed); the start fits' ranking, the
+        polish and every reported measure use all points. None: all points (the paper).
+    stall_generations : int or None, default 60
+        End DE/PSO when the best objective value has not improved by more than
+        ``stall_tolerance`` (relative) over this many generations. None: always run
+        ``iterations`` generations (the paper).
+    stall_tolerance : float, default 1e-4
+    warm_start : bool, default True
+        :func:`ipfit.fit_adaptive` starts each degree also from the previous degree's solution
+        (exactly representable, with zero higher-degree coefficients).
+    cleanup_weights : tuple of float, default (1.0,)
+        When a degree's zero set is not clean (spurious components, or not closed), the
+        geometric rule of :func:`ipfit.fit_adaptive` refits that degree with these far-field
+        term weights, in order, before rejecting it; every attempt is recorded.
 
     Examples
     --------
@@ -148,6 +164,11 @@ class SearchOptions:
     far_term_weight: float = DEFAULT_TERM_WEIGHT
     dtype: str = "float64"
     n_solutions: int = 5
+    search_points: int | None = 3000
+    stall_generations: int | None = 60
+    stall_tolerance: float = 1e-4
+    warm_start: bool = True
+    cleanup_weights: tuple[float, ...] = (1.0,)
 
     def __post_init__(self) -> None:
         set_ = functools.partial(object.__setattr__, self)
@@ -187,6 +208,17 @@ class SearchOptions:
             dtype = repr(dtype)
         set_("dtype", check_choice(dtype, "dtype", ("float64", "float32")))
         set_("n_solutions", check_int(self.n_solutions, "n_solutions", minimum=1))
+        if self.search_points is not None:
+            set_("search_points", check_int(self.search_points, "search_points", minimum=10))
+        if self.stall_generations is not None:
+            set_("stall_generations", check_int(self.stall_generations, "stall_generations", minimum=1))
+        set_("stall_tolerance", check_nonnegative(self.stall_tolerance, "stall_tolerance"))
+        if not isinstance(self.warm_start, (bool, np.bool_)):
+            raise error("warm_start", "True or False", repr(self.warm_start))
+        weights = self.cleanup_weights
+        if isinstance(weights, (str, bytes)) or not isinstance(weights, (tuple, list)):
+            raise error("cleanup_weights", "a tuple of far-field term weights", repr(weights))
+        set_("cleanup_weights", tuple(check_positive(w, "cleanup_weights") for w in weights))
 
     def replace(self, **changes: Any) -> "SearchOptions":
         """A copy with ``changes`` applied (and checked).
@@ -231,7 +263,8 @@ class SearchOptions:
 RECOMMENDED = SearchOptions()
 #: The paper's exact search: DE (F = 0.7, CR = 0.9, 500 iterations, population 4·d, N/10 started)
 #: in the raw coefficients, started from the classic and 3L fits, on the paper's distance.
-PAPER = SearchOptions(start_fits=("lstsq", "3l"), search_space="coefficients", far_term_weight=0.0)
+PAPER = SearchOptions(start_fits=("lstsq", "3l"), search_space="coefficients", far_term_weight=0.0, search_points=None,
+                      stall_generations=None, warm_start=False, cleanup_weights=())
 
 
 def renamed_keywords(**renames: Callable[[dict, Any], None]) -> Callable:

@@ -41,6 +41,7 @@ from .optimize import DifferentialEvolution, OptimizeResult, ParticleSwarm, poli
 from .options import (DEFAULT_DELTA, DEFAULT_METHOD, RECOMMENDED, REFINE_METHODS, SearchOptions, into_keyword,
                       into_options, renamed_keywords)
 from .polynomial import ImplicitPolynomial, Normalization
+from .sampling import spread_subsample
 from .starts import StartFits, initial_population, start_fits
 
 __all__ = ["refine", "RefineResult", "REFINE_METHODS"]
@@ -200,15 +201,23 @@ def refine(points: ArrayLike, normals: ArrayLike, degree: int, method: str = DEF
 
 
 def _objectives(pts, unit_normals, degree, delta, settings):
-    """The float64 objective (start fits, polish, measures) and the population's (maybe float32)."""
+    """The float64 objective on all points (start fits, polish, measures) and the search's: on a
+    well-spread subsample of ``search_points`` points, maybe in float32."""
     norm = Normalization.from_points(pts)
     u = norm.apply(pts)
     weight = settings["far_term_weight"]
-    terms = [FarFieldTerm.from_data(u, unit_normals, degree, weight)] if weight > 0 else []
-    obj64 = Objective(u, unit_normals, degree, delta, terms=terms)
+
+    def build(u_, n_, dtype=np.float64):
+        terms = [FarFieldTerm.from_data(u_, n_, degree, weight)] if weight > 0 else []
+        return Objective(u_, n_, degree, delta, dtype=dtype, terms=terms)
+
+    obj64 = build(u, unit_normals)
     dtype = np.dtype(settings["dtype"])
-    obj_pop = obj64 if dtype == np.float64 else Objective(u, unit_normals, degree, delta, dtype=dtype, terms=terms)
-    return norm, obj64, obj_pop
+    n_search = settings["search_points"]
+    if n_search is not None and len(u) > n_search:
+        keep = spread_subsample(u, n_search, rng=0)
+        return norm, obj64, build(u[keep], unit_normals[keep], dtype), len(keep)
+    return norm, obj64, (obj64 if dtype == np.float64 else build(u, unit_normals, dtype)), len(u)
 
 
 def _whitening(obj64: Objective) -> tuple[NDArray, NDArray]:
@@ -247,7 +256,8 @@ def _search(method, settings, obj_pop, starts: StartFits, r, r_inv, size, gen, c
         init = unit_rows(gen.standard_normal((size, d)))
     func = (lambda y: obj_pop(to_a(y))) if whitened else obj_pop
     stage = method.split("+")[0]
-    common = dict(maxiter=settings["iterations"], rng=gen, callback=_staged(callback, stage, to_a), project=unit_rows)
+    common = dict(maxiter=settings["iterations"], rng=gen, callback=_staged(callback, stage, to_a), project=unit_rows,
+                  stall_generations=settings["stall_generations"], stall_tolerance=settings["stall_tolerance"])
     if stage == "de":
         solver = DifferentialEvolution(func, init, mutation=settings["mutation"],
                                        recombination=settings["recombination"], **common)
@@ -306,13 +316,13 @@ def _refine(pts, unit_normals, degree, method, settings, delta, given_starts, ge
     size = settings["population_size"] or 4 * d
     if method.startswith("de") and size < 4:
         raise error("population_size", "at least 4 members for DE/rand/1", str(size))
-    norm, obj64, obj_pop = _objectives(pts, unit_normals, degree, delta, settings)
+    norm, obj64, obj_pop, n_search = _objectives(pts, unit_normals, degree, delta, settings)
     starts = start_fits(pts, unit_normals, degree, norm, settings["start_fits"], given_starts,
                         far_term=settings["far_term_weight"] > 0)
     if method == "polish" and not len(starts):
         raise error("starts", "at least one start fit for method='polish'", "none")
     nfev = starts.rank(obj64)
-    r, r_inv = _whitening(obj64)
+    r, r_inv = _whitening(obj_pop if n_search < len(pts) else obj64)
 
     history = starts.distances[:1].copy()
     nit, messages, success = 0, [], True
@@ -346,7 +356,8 @@ def _refine(pts, unit_normals, degree, method, settings, delta, given_starts, ge
     success = success and bool(np.isfinite(fun))
     if not np.isfinite(fun):
         messages.append("the objective is not finite at the best candidate")
-    info = {**settings, "delta": delta, "notes": starts.notes, "n_starts": len(starts), "objective": fun}
+    info = {**settings, "delta": delta, "notes": starts.notes, "n_starts": len(starts), "objective": fun,
+            "search_points_used": n_search}
     best = best.with_coefficients(best.coefficients, info=info)
     solutions[0] = best
     return RefineResult(

@@ -20,6 +20,7 @@ from .exceptions import IpfitError
 from .linear import DEFAULT_FAR_ROW_WEIGHT, fit_linear
 from .options import parse_start_fit
 from .polynomial import ImplicitPolynomial, Normalization
+from .sampling import spread_subsample
 
 __all__ = ["StartFits", "start_fits", "initial_population"]
 
@@ -28,6 +29,9 @@ __all__ = ["StartFits", "start_fits", "initial_population"]
 # "changes the values and gradients on the data by 10% of the start fit's".
 _SPREAD = (1e-3, 0.3)
 FAR_START = "3l-far"
+#: Linear start fits on bigger clouds use a well-spread subsample of this many points (in the
+#: whole cloud's coordinates): each fit's QR costs N·d², and a dozen of them run per degree.
+START_POINTS = 50_000
 
 
 class StartFits:
@@ -61,12 +65,16 @@ class StartFits:
 
 def _linear(points, normals, degree, norm: Normalization, specs: Sequence[str]):
     labels, coefs, notes = [], [], []
+    if len(points) > START_POINTS:
+        notes.append(f"start fits on a spread subsample of {START_POINTS} of the {len(points)} points")
+        keep = spread_subsample(points, START_POINTS, rng=0)
+        points, normals = points[keep], normals[keep]
     for spec in specs:
         method, params = parse_start_fit(spec)
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             try:
-                poly = fit_linear(points, normals, degree, method, **params)
+                poly = fit_linear(points, normals, degree, method, normalization=norm, **params)
             except IpfitError as exc:
                 notes.append(f"start fit {spec} failed: {exc}")
                 continue

@@ -9,7 +9,7 @@ from typing import Any, Callable, Iterator
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._validation import check_int, check_rng, error
+from .._validation import check_int, check_nonnegative, check_rng, error
 
 __all__ = ["OptimizeResult", "PopulationSolver"]
 
@@ -59,7 +59,8 @@ class PopulationSolver(abc.ABC):
 
     def __init__(self, func: Callable[[NDArray], ArrayLike], init: ArrayLike, *, maxiter: int = 500,
                  rng=None, callback: Callable[[OptimizeResult], Any] | None = None,
-                 project: Callable[[NDArray], NDArray] | None = None, min_population: int = 2) -> None:
+                 project: Callable[[NDArray], NDArray] | None = None, min_population: int = 2,
+                 stall_generations: int | None = None, stall_tolerance: float = 1e-4) -> None:
         try:
             pop = np.array(init, dtype=np.float64, copy=True)
         except (TypeError, ValueError):
@@ -72,6 +73,9 @@ class PopulationSolver(abc.ABC):
             raise error("callback", "a callable or None", type(callback).__name__)
         self.func = func
         self.maxiter = check_int(maxiter, "maxiter", minimum=0)
+        self.stall_generations = (None if stall_generations is None
+                                  else check_int(stall_generations, "stall_generations", minimum=1))
+        self.stall_tolerance = check_nonnegative(stall_tolerance, "stall_tolerance")
         self.rng = check_rng(rng)
         self.callback = callback
         self.project = project
@@ -129,9 +133,22 @@ class PopulationSolver(abc.ABC):
                               message=self.message, history=self.history, population=self.population,
                               population_fun=self.population_fun)
 
+    def stalled(self) -> bool:
+        """The best value improved by no more than ``stall_tolerance`` (relative) over the last
+        ``stall_generations`` generations."""
+        k = self.stall_generations
+        if k is None or self.nit < k:
+            return False
+        before, now = self._history[-k - 1], self._history[-1]
+        return before - now <= self.stall_tolerance * max(abs(before), np.finfo(float).tiny)
+
     def __iter__(self) -> Iterator[OptimizeResult]:
         while self.nit < self.maxiter and not self.stopped:
             yield self.step()
+            if not self.stopped and self.stalled():
+                self.stopped = True
+                self.message = (f"stalled: the best value improved by no more than {self.stall_tolerance:g} "
+                                f"(relative) over the last {self.stall_generations} generations")
 
     def solve(self) -> OptimizeResult:
         """Run up to ``maxiter`` generations; the callback sees every one.

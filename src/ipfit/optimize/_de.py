@@ -79,6 +79,9 @@ class DifferentialEvolution(PopulationSolver):
     project : callable, optional
         Applied to the initial population and to every trial vector before evaluation, e.g.
         :func:`unit_rows` to keep candidates on the unit sphere.
+    stall_generations, stall_tolerance : int or None, float
+        Stop early when the best value has improved by no more than ``stall_tolerance``
+        (relative) over the last ``stall_generations`` generations (None: never).
 
     Notes
     -----
@@ -106,13 +109,14 @@ class DifferentialEvolution(PopulationSolver):
     def __init__(self, func: Callable[[NDArray], ArrayLike], init: ArrayLike, *, mutation: float = 0.7,
                  recombination: float = 0.9, maxiter: int = 500, rng=None,
                  callback: Callable[[OptimizeResult], Any] | None = None,
-                 project: Callable[[NDArray], NDArray] | None = None) -> None:
+                 project: Callable[[NDArray], NDArray] | None = None, stall_generations: int | None = None,
+                 stall_tolerance: float = 1e-4) -> None:
         self.mutation = check_positive(mutation, "mutation")
         if self.mutation > 2:
             raise error("mutation", "a differential weight in (0, 2]", repr(mutation), "The paper uses 0.7.")
         self.recombination = check_probability(recombination, "recombination")
         super().__init__(func, init, maxiter=maxiter, rng=rng, callback=callback, project=project,
-                         min_population=4)
+                         min_population=4, stall_generations=stall_generations, stall_tolerance=stall_tolerance)
 
     def trial_vectors(self) -> NDArray[np.float64]:
         """Draw the next generation's trial vectors (mutation + crossover + projection)."""

@@ -64,14 +64,15 @@ class ParticleSwarm(PopulationSolver):
     def __init__(self, func: Callable[[NDArray], ArrayLike], init: ArrayLike, *, chi: float = 0.729,
                  c1: float = 2.05, c2: float = 2.05, maxiter: int = 500, rng=None,
                  callback: Callable[[OptimizeResult], Any] | None = None,
-                 project: Callable[[NDArray], NDArray] | None = None) -> None:
+                 project: Callable[[NDArray], NDArray] | None = None, stall_generations: int | None = None,
+                 stall_tolerance: float = 1e-4) -> None:
         self.chi = check_positive(chi, "chi")
         if self.chi >= 1:
             raise error("chi", "a constriction factor in (0, 1)", str(chi), "The paper uses chi = 0.729.")
         self.c1 = check_positive(c1, "c1")
         self.c2 = check_positive(c2, "c2")
         super().__init__(func, init, maxiter=maxiter, rng=rng, callback=callback, project=project,
-                         min_population=2)
+                         min_population=2, stall_generations=stall_generations, stall_tolerance=stall_tolerance)
         self.positions = self.population.copy()
         self.positions_fun = self.population_fun.copy()
         self.velocities = np.zeros_like(self.positions)

@@ -197,7 +197,7 @@ def run_convergence(ws: Workspace, log: Log, results: Mapping) -> dict:
                 after = polish_fit(data, degree, cfg, start=res.polynomial)
                 runs[f"{method}+polish"] = history_entry(
                     after, np.concatenate([res.history, after.polish_history]), nfev=res.nfev + after.nfev,
-                    seconds=res.seconds + after.seconds, best_seed_distance=res.best_seed_distance,
+                    seconds=res.seconds + after.seconds, best_seed_distance=res.best_start_value,
                     switch=len(res.history) - 1)
             res = polish_fit(data, degree, cfg)
             runs["polish"] = history_entry(res, np.concatenate([res.history, res.polish_history]))

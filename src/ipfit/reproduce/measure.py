@@ -62,8 +62,8 @@ def _improvement(start: float, final: float) -> float | None:
 
 def refine_summary(result) -> dict:
     """Iterations, evaluations, best start fit and improvement of a :class:`~ipfit.refine.RefineResult`."""
-    seed = float(result.best_seed_distance)
-    return {"nit": int(result.nit), "nfev": int(result.nfev), "best_seed": result.best_seed,
+    seed = float(result.best_start_value)
+    return {"nit": int(result.nit), "nfev": int(result.nfev), "best_seed": result.best_start,
             "best_seed_distance": seed, "refine_seconds": float(result.seconds),
             "improvement": _improvement(seed, float(result.distance))}
 
@@ -74,7 +74,7 @@ def history_entry(res, history: Sequence[float], *, nfev: int | None = None, sec
 
     ``switch`` is the iteration where the polish took over from the metaheuristic.
     """
-    seed = float(res.best_seed_distance if best_seed_distance is None else best_seed_distance)
+    seed = float(res.best_start_value if best_seed_distance is None else best_seed_distance)
     final = float(res.distance)
     return {"history": [float(f"{h:.6g}") for h in history], "final": final, "nit": int(res.nit),
             "nfev": int(res.nfev if nfev is None else nfev),

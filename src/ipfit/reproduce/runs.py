@@ -2,55 +2,59 @@
 
 The experiments ask for fits here and never call :func:`~ipfit.refine.refine`,
 :func:`~ipfit.adaptive.fit_adaptive` or :func:`~ipfit.linear.fit_linear` themselves, so a change
-to those functions' signatures is adapted in this one file. :func:`search_params` turns a
+to those functions' signatures is adapted in this one file. :func:`search_options` turns a
 :class:`~ipfit.reproduce.config.Config` into the search settings every refinement of the run
 shares (the paper's objective: no far-field term).
 
 >>> from ipfit.reproduce.config import CONFIGS
->>> search_params(CONFIGS["full"])
-{'iterations': 500, 'far_weight': 0.0, 'seeds': ['lstsq', '3l']}
+>>> opts = search_options(CONFIGS["full"])
+>>> opts.iterations, opts.far_term_weight, opts.start_fits
+(500, 0.0, ('lstsq', '3l'))
 """
 
 from __future__ import annotations
 
 import time
 import warnings
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
 from ..adaptive import AdaptiveResult, fit_adaptive
 from ..exceptions import ConditioningWarning
 from ..linear import fit_linear
+from ..options import RECOMMENDED, SearchOptions
 from ..polynomial import ImplicitPolynomial
 from ..refine import RefineResult, refine
 from .config import PATH_EPSILON, Config
 from .data import Data
 
-__all__ = ["search_params", "refine_fit", "polish_fit", "adaptive_fit", "linear_fit", "ridge_fit"]
+__all__ = ["search_options", "refine_fit", "polish_fit", "adaptive_fit", "linear_fit", "ridge_fit"]
 
 
-def search_params(cfg: Config) -> dict[str, Any]:
-    """The keyword arguments of :func:`~ipfit.refine.refine` shared by every DE/PSO run of ``cfg``."""
-    params: dict[str, Any] = {"iterations": cfg.iterations, "far_weight": 0.0}  # the paper's objective
-    if cfg.population is not None:
-        params["population"] = cfg.population
+def search_options(cfg: Config) -> SearchOptions:
+    """The search settings shared by every DE/PSO run of ``cfg``: the paper's objective (no
+    far-field term), the run's iterations, population and start fits."""
+    changes: dict[str, Any] = {"iterations": cfg.iterations, "far_term_weight": 0.0,
+                               "population_size": cfg.population}
     if cfg.seeds is not None:
-        params["seeds"] = list(cfg.seeds)
-    return params
+        changes["start_fits"] = tuple(cfg.seeds)
+    return RECOMMENDED.replace(**changes)
 
 
 def refine_fit(data: Data, degree: int, method: str, cfg: Config, *, delta: float,
                rng: np.random.Generator) -> RefineResult:
     """One DE or PSO refinement at a fixed degree with the run's search settings."""
-    return refine(data.points, data.normals, degree, method=method, delta=delta, rng=rng, **search_params(cfg))
+    return refine(data.points, data.normals, degree, method=method, options=search_options(cfg), delta=delta, rng=rng)
 
 
 def polish_fit(data: Data, degree: int, cfg: Config, start: ImplicitPolynomial | None = None) -> RefineResult:
     """The L-BFGS polish alone, from ``start`` or (None) from the best of the run's linear start fits."""
-    seeds = [start] if start is not None else (None if cfg.seeds is None else list(cfg.seeds))
-    return refine(data.points, data.normals, degree, method="polish", delta=cfg.delta, seeds=seeds, rng=0,
-                  far_weight=0.0)
+    opts = search_options(cfg)
+    if start is not None:
+        return refine(data.points, data.normals, degree, method="polish", options=opts.replace(start_fits=()),
+                      starts=[start], delta=cfg.delta, rng=0)
+    return refine(data.points, data.normals, degree, method="polish", options=opts, delta=cfg.delta, rng=0)
 
 
 class _Recorder:
@@ -61,16 +65,17 @@ class _Recorder:
     results gives the start fits' distances and the convergence histories.
     """
 
-    def __init__(self, method: str, delta: float, rng: np.random.Generator, params: Mapping[str, Any]) -> None:
+    def __init__(self, method: str, delta: float, rng: np.random.Generator, options: SearchOptions) -> None:
         self.method = method
         self.delta = delta
         self.rng = rng
-        self.params = dict(params)
+        self.options = options
         self.records: dict[int, RefineResult] = {}
         self.__name__ = method
 
     def __call__(self, points, normals, degree):
-        result = refine(points, normals, degree, method=self.method, delta=self.delta, rng=self.rng, **self.params)
+        result = refine(points, normals, degree, method=self.method, options=self.options, delta=self.delta,
+                        rng=self.rng)
         self.records[degree] = result
         return result.polynomial
 
@@ -81,9 +86,9 @@ def adaptive_fit(data: Data, method: str, cfg: Config, rng: np.random.Generator,
 
     Returns the library's result and the refinement of every degree it fitted.
     """
-    recorder = _Recorder(method, cfg.delta, rng, search_params(cfg))
+    recorder = _Recorder(method, cfg.delta, rng, search_options(cfg))
     result = fit_adaptive(data.points, data.normals, method=recorder, epsilon=epsilon, delta=cfg.delta,
-                          max_degree=max_degree or cfg.max_degree(data.dim), rule="paper", far_weight=0.0)
+                          max_degree=max_degree or cfg.max_degree(data.dim), rule="paper")
     return result, recorder.records
 
 
