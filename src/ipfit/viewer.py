@@ -235,15 +235,20 @@ def _zero_set_traces(go, dim: int, zs: ZeroSet, flags: NDArray[np.bool_], degree
                                      name=f"degree {degree}" + (" spurious" if spurious else ""),
                                      hovertemplate=f"degree {degree} zero set<extra></extra>"))
         return traces
-    v, f, lab = decimate(zs.vertices, zs.faces, max_faces, zs.component_labels)
+    face_flags = flags[zs.component_labels]
     for spurious in (False, True):
-        sel = f[flags[lab] == spurious]
+        sel = zs.faces[face_flags == spurious]
         if not len(sel):
             continue
+        # Each class on its own: a small spurious bubble keeps its faces whatever the main sheet needs.
+        used, sel = np.unique(sel, return_inverse=True)
+        v, f, _ = decimate(zs.vertices[used], sel.reshape(-1, 3), max_faces)
+        # A spurious part often sits inside the shape: see through the sheet around it.
+        opacity = 1.0 if spurious or not face_flags.any() else 0.45
         traces.append(go.Mesh3d(x=v[:, 0].astype(np.float32), y=v[:, 1].astype(np.float32),
-                                z=v[:, 2].astype(np.float32), i=sel[:, 0].astype(np.int32),
-                                j=sel[:, 1].astype(np.int32), k=sel[:, 2].astype(np.int32),
-                                color=SPURIOUS_COLOR if spurious else SURFACE_COLOR, flatshading=False,
+                                z=v[:, 2].astype(np.float32), i=f[:, 0].astype(np.int32),
+                                j=f[:, 1].astype(np.int32), k=f[:, 2].astype(np.int32),
+                                color=SPURIOUS_COLOR if spurious else SURFACE_COLOR, opacity=opacity,
                                 lighting=dict(ambient=0.45, diffuse=0.7, specular=0.15), visible=visible,
                                 name=f"degree {degree}" + (" spurious" if spurious else ""), showlegend=True,
                                 hovertemplate=f"degree {degree} zero set<extra></extra>"))
@@ -312,7 +317,8 @@ def result_figure(result, points: ArrayLike | None = None, *, faces: ArrayLike |
         stride = max(1, math.ceil(len(pts) / max_points))
         index = np.arange(0, len(pts), stride)
         custom = np.column_stack([index] + [f.polynomial.taubin_distance(pts[index]) for f in fits])
-        marker = dict(size=1.2 if dim == 3 else 4, color=POINT_COLOR, opacity=0.7 if dim == 3 else 1.0)
+        marker = dict(size=1.0 if dim == 3 else 3, color=POINT_COLOR if dim == 3 else "#8c8c8c",
+                      opacity=0.5 if dim == 3 else 1.0)
         add(_scatter(go, dim, pts[index].astype(np.float32), mode="markers", marker=marker, name="data points",
                      customdata=custom.astype(np.float32),
                      hovertemplate=_point_template(fits[current].degree, current + 1)), -1)
@@ -367,9 +373,9 @@ def result_figure(result, points: ArrayLike | None = None, *, faces: ArrayLike |
         title=dict(text=f"{html.escape(str(name))}: degree {fits[current].degree}", x=0.02),
         sliders=[dict(active=current, steps=steps, currentvalue=dict(prefix="degree shown: "),
                       x=0.02, len=0.5, y=0.02, pad=dict(t=10))],
-        xaxis2=dict(domain=[0.66, 1.0], anchor="y2", title="degree", tickvals=degrees),
+        xaxis2=dict(domain=[0.66, 0.86], anchor="y2", title="degree", tickvals=degrees),
         yaxis2=dict(domain=[0.06, 0.34], anchor="x2", title="smoothness / F-score"),
-        legend=dict(x=0.62, y=0.39, yanchor="bottom", orientation="h"),
+        legend=dict(x=0.88, y=0.36, yanchor="top"),
         margin=dict(l=20, r=20, t=60, b=20), template="plotly_white", hovermode="closest",
         annotations=[dict(text=_why(data, selected), x=0.6, y=0.97, xref="paper", yref="paper", showarrow=False,
                           xanchor="left", yanchor="top", align="left")])
