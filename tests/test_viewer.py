@@ -166,6 +166,17 @@ def test_figure_3d_meshes_normals_and_camera(torus_case):
     assert fig.layout.scene.camera.up.y == 1 and fig.layout.scene.camera.up.z == 0
 
 
+def test_figure_of_an_adaptive_result_object():
+    from ipfit import fit_adaptive
+
+    shape = synthetic.ellipse(150)
+    result = fit_adaptive(shape.points, shape.normals, method="3l", max_degree=4, epsilon=-1.0)
+    fig = viewer.result_figure(result, shape.points)
+    assert [s.label for s in fig.layout.sliders[0].steps] == [str(d.degree) for d in result.degrees]
+    assert fig.layout.sliders[0].steps[fig.layout.sliders[0].active].label == str(result.selected_degree)
+    assert "F-score" in [t.name for t in fig.data]  # the geometric rule measured every degree
+
+
 def test_figure_without_points_uses_recorded_bounds(torus_case):
     shape, data = torus_case
     data = dict(data, bounds=np.column_stack([shape.points.min(0), shape.points.max(0)]).tolist())
@@ -334,6 +345,11 @@ def test_page_in_a_headless_browser(browser, case, request, tmp_path):
         return fraction if fraction > 0.005 else None
 
     _wait_for(changed, "the drawn zero set to change after moving the slider", timeout=10)
+    if shape.points.shape[1] == 2:  # plotly can hover 2D points from script; 3D needs a real mouse
+        label = _plot(browser, "(Plotly.Fx.hover(gd, [{curveNumber: 0, pointNumber: 3}]), "
+                               "Array.from(document.querySelectorAll('.hoverlayer text')).map(t => t.textContent)"
+                               ".join(' '))")
+        assert label.startswith("point 3") and f"at degree {other}:" in label
     assert [e for e in browser.get_log("browser") if e["level"] == "SEVERE"] == []
 
 
