@@ -1,0 +1,77 @@
+"""``ipfit view RESULT.json -o view.html``: the interactive, self-contained HTML viewer of a result."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from ._common import nonnegative_float, positive_int
+
+NAME = "view"
+HELP = "write an interactive HTML viewer of a result (rotate, zoom, switch degrees), offline"
+DESCRIPTION = """\
+Write one self-contained HTML page (works offline: plotly's JavaScript is inlined) showing
+RESULT.json (written by `ipfit fit`): the data and the zero set of every degree tried, a slider
+to switch degrees, spurious components in red, the data's normals (click "normals" in the
+legend), the per-degree table, why the degree was selected, and smoothness against degree.
+Hovering a point shows its index and |f|/|grad f| at the degree shown.
+
+Without --points, the data recorded in the result ("input") is used when it can be read.
+Needs plotly: pip install 'ipfit[viewer]'.
+"""
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("result", metavar="RESULT.json", help="a result written by ipfit fit")
+    parser.add_argument("-o", "--output", metavar="VIEW.html",
+                        help="the page to write (default: RESULT with the extension .html)")
+    parser.add_argument("--points", metavar="INPUT", help="the data (file or bundled name)")
+    parser.add_argument("--no-points", action="store_true",
+                        help="do not look for the data recorded in the result (\"input\") when --points is absent")
+    parser.add_argument("--no-normals", action="store_true", help="leave the data's normals out of the page")
+    parser.add_argument("--title", help="page title (default: the input's name)")
+    parser.add_argument("--up", choices=("x", "y", "z"), default="z",
+                        help="3D: the axis pointing up on screen (default z; scanned meshes like the bunny are y-up)")
+    parser.add_argument("--max-faces", type=positive_int, default=None, metavar="N",
+                        help="faces per degree in the page after decimation (default 15000)")
+    parser.add_argument("--margin", type=nonnegative_float, default=0.25,
+                        help="margin around the data's box, as a fraction of its longest side (default 0.25)")
+    parser.add_argument("--open", action="store_true", help="open the page in the web browser")
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..exceptions import InvalidInputError
+    from ..plotting import load_result
+    from ..viewer import MAX_FACES, write_html
+    from ._common import load_input
+
+    data = load_result(args.result)
+    output = Path(args.output) if args.output else Path(args.result).with_suffix(".html")
+    dim = int(data.get("dim") or len(data.get("normalization", {}).get("center", [])) or 0)
+    points = faces = normals = None
+    recorded = (data.get("input") or {}).get("source") if isinstance(data.get("input"), dict) else None
+    spec = args.points or (None if args.no_points else recorded)
+    if spec is not None:
+        try:
+            found = load_input(spec)
+        except InvalidInputError:
+            if args.points:
+                raise
+            found = None  # the recorded data moved away: view the result without it
+        if found is not None and found.points.shape[1] != dim:
+            if args.points:
+                raise InvalidInputError(f"--points: expected {dim}D points to match the result, got "
+                                        f"{found.points.shape[1]}D. Pass the data the result was fitted to.")
+            found = None
+        if found is not None:
+            points, faces = found.points, found.faces
+            normals = None if args.no_normals else found.normals
+    write_html(data, points, output, faces=faces, normals=normals, title=args.title, up=args.up,
+               margin=args.margin, max_faces=args.max_faces or MAX_FACES)
+    size = output.stat().st_size / 1e6
+    print(f"{output}: {size:.1f} MB" + ("" if points is not None else " (without the data points)"))
+    if args.open:
+        import webbrowser
+
+        webbrowser.open(output.resolve().as_uri())
+    return 0

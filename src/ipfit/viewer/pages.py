@@ -1,0 +1,50 @@
+"""HTML pages: the standalone page around a figure (and, later, an index of several)."""
+
+from __future__ import annotations
+
+import html
+import os
+from pathlib import Path
+
+from numpy.typing import ArrayLike
+
+from .._validation import error
+from .figure import result_figure
+
+__all__ = ["page", "to_html", "write_html"]
+
+
+def page(title: str, body: str) -> str:
+    """A minimal standalone HTML page around ``body`` (the viewer's, and a future index page's)."""
+    return ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
+            f"<title>{html.escape(title)}</title>"
+            "<style>html,body{margin:0;height:100%;font-family:sans-serif}</style></head>\n"
+            f"<body>{body}</body></html>\n")
+
+
+def to_html(result, points: ArrayLike | None = None, *, full_html: bool = True, include_plotlyjs=True,
+            **kwargs) -> str:
+    """The viewer as HTML: a whole offline page, or with ``full_html=False`` a ``<div>`` (notebooks).
+
+    ``include_plotlyjs=True`` inlines plotly's JavaScript (offline, ~4.8 MB); other values
+    are passed to plotly (e.g. ``"cdn"``). ``kwargs`` go to :func:`result_figure`.
+    """
+    fig = result_figure(result, points, **kwargs)
+    div = fig.to_html(full_html=False, include_plotlyjs=include_plotlyjs, default_width="100%",
+                      default_height="100vh" if full_html else "720px", config={"responsive": True})
+    if not full_html:
+        return div
+    return page(f"ipfit viewer: {fig.layout.title.text}", div)
+
+
+def write_html(result, points: ArrayLike | None, path: str | os.PathLike, **kwargs) -> None:
+    """Write the viewer page of ``result`` to ``path`` atomically (see :func:`result_figure`)."""
+    from .._atomic import write_text_atomic
+
+    # Checked before the figure is built: a big result takes seconds to draw.
+    if not str(path).lower().endswith((".html", ".htm")):
+        raise error("path", "a file name ending in .html", repr(str(path)), "Name the page e.g. view.html.")
+    folder = Path(path).parent
+    if not folder.is_dir():
+        raise error("path", "a file in an existing folder", f"{str(path)!r}", f"Create {folder} first.")
+    write_text_atomic(path, to_html(result, points, **kwargs))
