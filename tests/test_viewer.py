@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import ipfit
 from ipfit import ImplicitPolynomial, extract_zero_set, quality, write_points
 from ipfit.cli import main
 from ipfit.datasets import synthetic
@@ -369,3 +370,25 @@ def test_bunny_page_size_and_spurious_counts(tmp_path):
     path = tmp_path / "bunny.html"
     viewer.write_html(data, points, path, faces=dataset_faces("bunny"), up="y")
     assert path.stat().st_size < 10e6
+
+
+def test_fit_html_writes_the_viewer_beside_the_other_outputs(tmp_path):
+    from ipfit.cli import main
+
+    code = main(["fit", "boot", "-o", str(tmp_path / "boot"), "--method", "3l", "--max-degree", "4", "--quiet",
+                 "--html"])
+    assert code == 0
+    page = (tmp_path / "boot.html").read_text(encoding="utf-8")
+    assert "plotly" in page.lower() and not re.search(r"<script[^>]+src=[\"']https?:", page)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["boot.csv", "boot.html", "boot.json", "boot.png", "boot.svg"]
+
+
+def test_a_result_displays_itself_in_a_notebook():
+    from ipfit.datasets import synthetic
+
+    shape = synthetic.ellipse(120, a=2.0, b=1.0)
+    result = ipfit.fit_adaptive(shape.points, shape.normals, method="3l", max_degree=4)
+    html = result._repr_html_()
+    assert html.lstrip().startswith("<div") and "<html" not in html[:200].lower()
+    figure = result.show(shape.points)
+    assert len(figure.data) > 0 and len(figure.layout.sliders) == 1

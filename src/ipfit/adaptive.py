@@ -197,6 +197,18 @@ class AdaptiveResult:
         tried = ", ".join(str(d.degree) for d in self.degrees)
         raise error("degree", f"one of the degrees tried ({tried})", str(degree))
 
+    def show(self, points=None, **kwargs):
+        """An interactive plotly figure of every degree (:func:`ipfit.viewer.result_figure`)."""
+        from .viewer import result_figure
+
+        return result_figure(self, points, **kwargs)
+
+    def _repr_html_(self) -> str:
+        # Notebooks display the viewer inline, without writing files (plotly is inlined).
+        from .viewer import to_html
+
+        return to_html(self, full_html=False)
+
     def to_dict(self) -> dict:
         """The JSON result: the foundation format plus ``selected_degree`` and ``degrees``."""
         out = self.polynomial.to_dict()

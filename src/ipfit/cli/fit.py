@@ -77,6 +77,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="use the file's normals or estimate them (default: the file's when present)")
     parser.add_argument("--no-picture", action="store_true", help="skip the PNG picture")
     parser.add_argument("--no-zero-set", action="store_true", help="skip the mesh / curve export")
+    parser.add_argument("--html", action="store_true",
+                        help="also write PREFIX.html: an interactive viewer of every degree (works offline)")
     parser.add_argument("-q", "--quiet", action="store_true", help="no progress output")
 
 
@@ -164,7 +166,7 @@ def run(args: argparse.Namespace) -> int:
     if Path(args.input).exists():  # found again by ipfit plot/mesh/score from any folder
         payload["input"]["path"] = str(Path(args.input).resolve())
     payload["bounds"] = np.column_stack([points.min(axis=0), points.max(axis=0)]).tolist()
-    _write_outputs(prefix, payload, result, points, data, args)
+    _write_outputs(prefix, payload, result, points, normals, data, args)
     if not args.quiet:
         table = ", ".join(f"{d.degree}: {d.smoothness:.4f}" for d in result.degrees)
         if result.reason == "fixed":
@@ -180,7 +182,7 @@ def _beside(prefix: Path, suffix: str) -> Path:
     return prefix.with_name(prefix.name + suffix)
 
 
-def _write_outputs(prefix: Path, payload: dict, result, points, data, args) -> None:
+def _write_outputs(prefix: Path, payload: dict, result, points, normals, data, args) -> None:
     from ..export import save_zero_set
     from ..zeroset import extract_zero_set
 
@@ -199,5 +201,9 @@ def _write_outputs(prefix: Path, payload: dict, result, points, data, args) -> N
             from ..plotting import plot_result
 
             plot_result(payload, points=points, path=out.path(_beside(prefix, ".png")))
+        if args.html:
+            from ..viewer import write_html
+
+            write_html(payload, points, out.path(_beside(prefix, ".html")), faces=data.faces, normals=normals)
         out.path(_beside(prefix, ".json")).write_text(json.dumps(payload, indent=1), encoding="utf-8")
         out.commit()
