@@ -72,6 +72,7 @@ class DegreeResult:
     quality: Quality | None = None
     solutions: tuple[ImplicitPolynomial, ...] = ()
     cleanup: tuple[Mapping[str, Any], ...] = ()
+    reason: str = ""
 
     @property
     def dissimilarity(self) -> float:
@@ -100,6 +101,8 @@ class DegreeResult:
             out["quality"] = self.quality.to_dict()
         if self.cleanup:
             out["cleanup"] = [dict(attempt) for attempt in self.cleanup]
+        if self.reason:
+            out["reason"] = self.reason
         return out
 
 
@@ -380,12 +383,15 @@ def fit_adaptive(points: ArrayLike, normals: ArrayLike | None = None, *, method:
                 reason = "criterion"
                 break
     index, reason = _select(results, rule, epsilon, reason, fixed=len(degrees) == 1)
+    message = _explain(results, index, reason, epsilon)
+    results = [dataclasses.replace(r, reason=_verdict(results, i, index, message, rule, epsilon))
+               for i, r in enumerate(results)]
     chosen = results[index]
     name = method if isinstance(method, str) else getattr(method, "__name__", "custom")
     success = reason != "interrupted" and (rule == "paper" or chosen.clean or not any(r.clean for r in results))
     return AdaptiveResult(
         x=chosen.x, fun=chosen.fun, nit=len(results), nfev=sum(r.nfev for r in results), success=success,
-        message=_explain(results, index, reason, epsilon), polynomial=chosen.polynomial,
+        message=message, polynomial=chosen.polynomial,
         selected_degree=chosen.degree, degrees=tuple(results), reason=reason, epsilon=epsilon, delta=delta,
         method=name, rule=rule, seconds=time.perf_counter() - start,
         options=options if method in REFINE_METHODS else None)
@@ -448,6 +454,39 @@ def _select(results, rule, epsilon, reason, fixed: bool) -> tuple[int, str]:
     else:
         index, rule_reason = select_degree(degs, smooth, epsilon, complete=complete)
     return index, (rule_reason if complete else "interrupted")
+
+
+def describe_unclean(q: Quality) -> str:
+    """Why a zero set is not clean, in one phrase (empty when it is clean)."""
+    parts = []
+    if q.spurious:
+        big = max(q.spurious, key=lambda c: c["size"])
+        center = ", ".join(f"{v:.3g}" for v in big["center"])
+        parts.append(f"{len(q.spurious)} spurious component{'s' if len(q.spurious) > 1 else ''} (largest "
+                     f"{100 * big['share']:.1f}% of the zero set, at ({center}), {big['distance']:.3g} from the data)")
+    if not q.closed:
+        parts.append("not closed inside the box")
+    return "; ".join(parts)
+
+
+def _verdict(results, i, index, message, rule, epsilon) -> str:
+    """Why degree ``i`` was selected or not, in one line."""
+    entry, chosen = results[i], results[index]
+    if i == index:
+        return "selected: " + message
+    if entry.quality is not None and not entry.clean:
+        return "rejected: " + describe_unclean(entry.quality)
+    if i > index:
+        gain = entry.smoothness - results[i - 1].smoothness
+        if gain <= epsilon:
+            return f"not needed: smoothness gain {gain:.4g} over degree {results[i - 1].degree} <= epsilon {epsilon:g}"
+        if rule == "geometric" and chosen.quality is not None:
+            return f"clean, but degree {chosen.degree} was selected (F-score {chosen.quality.f_score:.3f})"
+        return f"tried after the selected degree {chosen.degree}"
+    gain = results[i + 1].smoothness - entry.smoothness
+    if gain > epsilon:
+        return f"superseded: degree {results[i + 1].degree} gained {gain:.4g} > epsilon {epsilon:g} in smoothness"
+    return f"clean, but degree {chosen.degree} was selected"
 
 
 def _explain(results, index, reason, epsilon) -> str:

@@ -59,6 +59,9 @@ class Quality:
     data_to_zero_set, zero_set_to_data : the two one-sided mean distances.
     grid_step : the extraction grid's step (the zero set's own accuracy).
     reference : what precision was measured against: "faces", "contour" or "points".
+    spurious : one record per spurious component: its ``size`` (length in 2D, area in 3D,
+        user units), ``share`` of the zero set's total size, ``center`` (mean position) and
+        ``distance`` (nearest approach to the data).
     """
 
     recall: float
@@ -73,6 +76,7 @@ class Quality:
     zero_set_to_data: float
     grid_step: float
     reference: str
+    spurious: tuple[dict, ...] = ()
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready values (infinite distances become None)."""
@@ -80,6 +84,7 @@ class Quality:
         for key, value in out.items():
             if isinstance(value, float) and not math.isfinite(value):
                 out[key] = None
+        out["spurious"] = [dict(c) for c in self.spurious]
         return out
 
     def __str__(self) -> str:
@@ -315,7 +320,9 @@ def quality(model: ImplicitPolynomial | ZeroSet, points: ArrayLike, *, faces: Ar
 
     n_components = zs.n_components
     if zs.is_empty:
-        return Quality(0.0, 0.0, 0.0, math.inf, 0, 0, False, tau, math.inf, math.inf, zs.step, reference)
+        return Quality(recall=0.0, precision=0.0, f_score=0.0, chamfer=math.inf, n_components=0, n_spurious=0,
+                       closed=False, tau=tau, data_to_zero_set=math.inf, zero_set_to_data=math.inf,
+                       grid_step=zs.step, reference=reference)
 
     samples = zs.sample(spacing, max_samples=max_samples)
     if dim == 2:
@@ -338,8 +345,20 @@ def quality(model: ImplicitPolynomial | ZeroSet, points: ArrayLike, *, faces: Ar
     f_score = 0.0 if precision + recall == 0 else 2 * precision * recall / (precision + recall)
     nearest = np.full(n_components, np.inf)
     np.minimum.at(nearest, samples.labels, d_zero)
-    n_spurious = int(np.sum(nearest > tau))
+    spurious = _spurious_components(samples, nearest, tau)
     return Quality(recall=recall, precision=precision, f_score=float(f_score),
                    chamfer=0.5 * (data_to_zero + zero_to_data), n_components=n_components,
-                   n_spurious=n_spurious, closed=zs.closed, tau=tau, data_to_zero_set=data_to_zero,
-                   zero_set_to_data=zero_to_data, grid_step=zs.step, reference=reference)
+                   n_spurious=len(spurious), closed=zs.closed, tau=tau, data_to_zero_set=data_to_zero,
+                   zero_set_to_data=zero_to_data, grid_step=zs.step, reference=reference, spurious=spurious)
+
+
+def _spurious_components(samples, nearest: NDArray, tau: float) -> tuple[dict, ...]:
+    """Size, share, position and distance of every component that never comes within τ of the data."""
+    n = len(nearest)
+    size = np.bincount(samples.labels, weights=samples.weights, minlength=n)
+    count = np.maximum(np.bincount(samples.labels, minlength=n), 1)
+    center = np.stack([np.bincount(samples.labels, weights=samples.points[:, j], minlength=n) / count
+                       for j in range(samples.points.shape[1])], axis=1)
+    total = float(size.sum()) or 1.0
+    return tuple({"size": float(size[i]), "share": float(size[i] / total), "center": center[i].tolist(),
+                  "distance": float(nearest[i])} for i in np.flatnonzero(nearest > tau))

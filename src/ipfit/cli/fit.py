@@ -169,6 +169,9 @@ def run(args: argparse.Namespace) -> int:
     _write_outputs(prefix, payload, result, points, normals, data, args)
     if not args.quiet:
         table = ", ".join(f"{d.degree}: {d.smoothness:.4f}" for d in result.degrees)
+        for entry in result.degrees:
+            if entry.reason.startswith("rejected"):
+                print(f"degree {entry.degree} {entry.reason}")
         if result.reason == "fixed":
             print(f"fixed degree {result.selected_degree}: smoothness {table.split(': ')[1]}")
         else:
