@@ -13,11 +13,12 @@ never through the normal equations, whose condition number is the square of the 
 from __future__ import annotations
 
 import functools
+import itertools
 import numbers
 import warnings
 from dataclasses import dataclass
 from math import factorial
-from typing import Callable
+from typing import Callable, Iterable, Iterator
 
 import numpy as np
 import scipy.linalg
@@ -115,13 +116,44 @@ def _triangular_lstsq(r: NDArray, z: NDArray, method: str) -> tuple[NDArray, dic
     return a, {"condition_number": cond, "rank": rank}
 
 
-def _qr_solve(a_mat: NDArray, b: NDArray, method: str, extra_rows: NDArray | None = None) -> tuple[NDArray, dict]:
-    """Least squares min ||A a − b||² (+ ||E a||²) by one QR of [A | b]; Q is never formed."""
+# Rows per QR step on big systems: [R; next rows] is factorised in turn (a tall-skinny QR), so
+# the full design matrix never exists. Systems with fewer rows take one QR, as before.
+_BLOCK_ROWS = 1 << 17
+
+
+def _r_of_blocks(blocks: Iterable[NDArray]) -> NDArray:
+    """R of the row-stacked ``blocks``: one QR when they fit in ``_BLOCK_ROWS`` rows, else a
+    running QR of [R; next blocks]."""
+    pending, rows, r = [], 0, None
+    for block in blocks:
+        pending.append(block)
+        rows += len(block)
+        if rows >= _BLOCK_ROWS:
+            r = _r_factor(np.concatenate(([] if r is None else [r]) + pending), overwrite=True)
+            pending, rows = [], 0
+    if pending or r is None:
+        r = _r_factor(np.concatenate(([] if r is None else [r]) + pending), overwrite=True)
+    return r
+
+
+def _point_chunks(problem: _Problem, rows_per_point: int) -> Iterator[slice]:
+    n = len(problem.u)
+    step = max(1, _BLOCK_ROWS // rows_per_point)
+    return (slice(start, min(start + step, n)) for start in range(0, n, step))
+
+
+def _augmented(a_mat: NDArray, b: NDArray) -> NDArray:
     aug = np.empty((a_mat.shape[0], a_mat.shape[1] + 1))
     aug[:, :-1] = a_mat
     aug[:, -1] = b
-    r_aug = _r_factor(aug, overwrite=True)
-    d = a_mat.shape[1]
+    return aug
+
+
+def _qr_solve(blocks: Iterable[NDArray], d: int, method: str,
+              extra_rows: NDArray | None = None) -> tuple[NDArray, dict]:
+    """Least squares min ||A a − b||² (+ ||E a||²) from the R of [A | b], given as row blocks of
+    [A | b]; Q is never formed."""
+    r_aug = _r_of_blocks(blocks)
     r, z = r_aug[:d, :d], r_aug[:d, d]
     residual = float(abs(r_aug[d, d])) if r_aug.shape[0] > d else 0.0
     if extra_rows is not None:
@@ -135,7 +167,7 @@ def _qr_solve(a_mat: NDArray, b: NDArray, method: str, extra_rows: NDArray | Non
 # -- solvers (one signature) -----------------------------------------------------------
 def _solve_lstsq(problem: _Problem) -> tuple[NDArray, dict]:
     # Minimise ||M a|| with ||a|| = 1: the right singular vector of the smallest singular value.
-    r = _r_factor(problem.design())
+    r = _r_of_blocks(problem.design(problem.u[sl]) for sl in _point_chunks(problem, 1))
     _, sv, vt = np.linalg.svd(r)
     info = {"condition_number": float(sv[0] / sv[-1]) if sv[-1] > 0 else float("inf"),
             "smallest_singular_value": float(sv[-1]),
@@ -143,20 +175,35 @@ def _solve_lstsq(problem: _Problem) -> tuple[NDArray, dict]:
     return vt[-1], info
 
 
+def _taubin_factors(problem: _Problem) -> tuple[NDArray, NDArray, NDArray]:
+    """(mean of the non-constant monomials, them centred (or their R, for big clouds), R of their
+    gradient rows)."""
+    if len(problem.u) * (1 + problem.dim) <= _BLOCK_ROWS:
+        m, dm = basis.monomials_and_gradients(problem.u, problem.degree)
+        mean = m[:, 1:].mean(axis=0)
+        return mean, m[:, 1:] - mean, _r_factor(dm[:, :, 1:].reshape(-1, m.shape[1] - 1))
+
+    # Big clouds: R of [1 | M₁] holds the column sums in its first row and the centred R below.
+    def blocks(gradients: bool):
+        for sl in _point_chunks(problem, 1 + problem.dim):
+            m, dm = basis.monomials_and_gradients(problem.u[sl], problem.degree)
+            yield dm[:, :, 1:].reshape(-1, m.shape[1] - 1) if gradients else m
+
+    r1 = _r_of_blocks(blocks(False))
+    return r1[0, 1:] / r1[0, 0], r1[1:, 1:], _r_of_blocks(blocks(True))
+
+
 def _solve_taubin(problem: _Problem) -> tuple[NDArray, dict]:
     # Minimise Σ f² / Σ ||∇f||². The constant term has no gradient, so eliminate it first
     # (its optimum centres the other columns). Then whiten by the gradient rows' SVD,
     # restricted to the directions whose gradient on the data is not zero (on exact data a
     # square such as (x²+y²−1)² has none), which leaves an ordinary smallest-singular-vector
-    # problem.
-    m, dm = basis.monomials_and_gradients(problem.u, problem.degree)
-    mean = m[:, 1:].mean(axis=0)
-    centred = m[:, 1:] - mean
-    grads = dm[:, :, 1:].reshape(-1, m.shape[1] - 1)
-    _, sv_g, vt_g = np.linalg.svd(_r_factor(grads))
+    # problem. R of (centred · W) is R of (R_centred · W), Q drops out, so big clouds pass R.
+    mean, r_centred, r_grads = _taubin_factors(problem)
+    _, sv_g, vt_g = np.linalg.svd(r_grads)
     keep = sv_g > 1e-10 * sv_g[0]
     whiten = vt_g[keep].T / sv_g[keep]
-    _, sv, vt = np.linalg.svd(_r_factor(centred @ whiten))
+    _, sv, vt = np.linalg.svd(_r_factor(r_centred @ whiten))
     a1 = whiten @ vt[-1]
     coef = np.concatenate([[-mean @ a1], a1])
     info = {"condition_number": float(sv_g[0] / sv_g[keep][-1]), "eigenvalue": float(sv[-1] ** 2),
@@ -164,29 +211,29 @@ def _solve_taubin(problem: _Problem) -> tuple[NDArray, dict]:
     return coef, info
 
 
-def _three_level_rows(problem: _Problem, c: float) -> tuple[NDArray, NDArray]:
-    u, n = problem.u, problem.normals
-    stacked = np.concatenate([u, u + c * n, u - c * n])
-    targets = np.concatenate([np.zeros(len(u)), np.full(len(u), c), np.full(len(u), -c)])
-    return problem.design(stacked), targets
+def _three_level_blocks(problem: _Problem, c: float) -> Iterator[NDArray]:
+    for sl in _point_chunks(problem, 3):
+        u, n = problem.u[sl], problem.normals[sl]
+        stacked = np.concatenate([u, u + c * n, u - c * n])
+        targets = np.concatenate([np.zeros(len(u)), np.full(len(u), c), np.full(len(u), -c)])
+        yield _augmented(problem.design(stacked), targets)
 
 
-def _with_far_field(problem: _Problem, a_mat: NDArray, b: NDArray, far_row_weight: float, c: float):
-    """Append far-field rows whose total weight is ``far_row_weight`` times the data rows' weight."""
+def _far_field_block(problem: _Problem, n_rows: int, far_row_weight: float, c: float) -> tuple[list, int]:
+    """Far-field rows whose total weight is ``far_row_weight`` times the ``n_rows`` data rows' weight."""
     if far_row_weight <= 0:
-        return a_mat, b, 0
+        return [], 0
     samples, targets = far_field_samples(problem.u, problem.normals, c=c)
     if len(samples) == 0:
-        return a_mat, b, 0
-    root = np.sqrt(far_row_weight * len(b) / len(samples))
-    return (np.concatenate([a_mat, root * problem.design(samples)]),
-            np.concatenate([b, root * targets]), len(samples))
+        return [], 0
+    root = np.sqrt(far_row_weight * n_rows / len(samples))
+    return [_augmented(root * problem.design(samples), root * targets)], len(samples)
 
 
 def _solve_3l(problem: _Problem, c: float = DEFAULT_OFFSET, far_row_weight: float = 0.0) -> tuple[NDArray, dict]:
-    a_mat, b = _three_level_rows(problem, c)
-    a_mat, b, n_far = _with_far_field(problem, a_mat, b, far_row_weight, c)
-    coef, info = _qr_solve(a_mat, b, "fit_3l")
+    far, n_far = _far_field_block(problem, 3 * len(problem.u), far_row_weight, c)
+    d = basis.n_coefficients(problem.dim, problem.degree)
+    coef, info = _qr_solve(itertools.chain(_three_level_blocks(problem, c), far), d, "fit_3l")
     info.update(far_row_weight=far_row_weight, far_samples=n_far)
     return coef, info
 
@@ -207,22 +254,28 @@ def ridge_penalty(u: NDArray[np.float64], exps: NDArray[np.int64]) -> NDArray[np
 
 def _solve_ridge(problem: _Problem, c: float = DEFAULT_OFFSET, kappa: float = DEFAULT_KAPPA,
                  far_row_weight: float = 0.0) -> tuple[NDArray, dict]:
-    a_mat, b = _three_level_rows(problem, c)
-    a_mat, b, n_far = _with_far_field(problem, a_mat, b, far_row_weight, c)
+    far, n_far = _far_field_block(problem, 3 * len(problem.u), far_row_weight, c)
     penalty = ridge_penalty(problem.u, problem.exponents)
-    coef, info = _qr_solve(a_mat, b, "fit_ridge", extra_rows=np.diag(np.sqrt(kappa * penalty)))
+    coef, info = _qr_solve(itertools.chain(_three_level_blocks(problem, c), far), len(penalty), "fit_ridge",
+                           extra_rows=np.diag(np.sqrt(kappa * penalty)))
     info.update(kappa=kappa, far_row_weight=far_row_weight, far_samples=n_far)
     return coef, info
 
 
 def _solve_gradient_one(problem: _Problem, mu: float = DEFAULT_MU, far_row_weight: float = 0.0,
                         c: float = DEFAULT_OFFSET) -> tuple[NDArray, dict]:
-    m, dm = basis.monomials_and_gradients(problem.u, problem.degree)
     root = np.sqrt(mu)
-    a_mat = np.concatenate([m, root * dm.reshape(-1, m.shape[1])])
-    b = np.concatenate([np.zeros(len(m)), root * problem.normals.T.ravel()])
-    a_mat, b, n_far = _with_far_field(problem, a_mat, b, far_row_weight, c)
-    coef, info = _qr_solve(a_mat, b, "fit_gradient_one")
+
+    def blocks():
+        for sl in _point_chunks(problem, 1 + problem.dim):
+            m, dm = basis.monomials_and_gradients(problem.u[sl], problem.degree)
+            yield _augmented(np.concatenate([m, root * dm.reshape(-1, m.shape[1])]),
+                             np.concatenate([np.zeros(len(m)), root * problem.normals[sl].T.ravel()]))
+
+    n_rows = len(problem.u) * (1 + problem.dim)
+    far, n_far = _far_field_block(problem, n_rows, far_row_weight, c)
+    d = basis.n_coefficients(problem.dim, problem.degree)
+    coef, info = _qr_solve(itertools.chain(blocks(), far), d, "fit_gradient_one")
     info.update(mu=mu, far_row_weight=far_row_weight, far_samples=n_far)
     return coef, info
 
