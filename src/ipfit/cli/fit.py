@@ -10,7 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ._common import OutputSet, finite_float, load_input, nonnegative_float, positive_int, prepare_output_dir, show_progress
+from ._common import (Outputs, beside, default_prefix, finite_float, fit_prefix, load_input, nonnegative_float,
+                      positive_int, show_progress)
 
 NAME = "fit"
 HELP = "fit an implicit polynomial to a point file or a bundled dataset"
@@ -125,13 +126,13 @@ def run(args: argparse.Namespace) -> int:
                                 f"points, the input has {len(points)}. Lower the degree.")
     if args.normals == "file" and normals is None:
         raise InvalidInputError(f"--normals file: {args.input} has no normals. Use --normals estimate.")
+    prefix, outputs = _plan_outputs(args, data.label, dim)
     source = "file"
     if normals is None or args.normals == "estimate":
         from ..normals import estimate_normals
 
         normals = estimate_normals(points)
         source = "estimated"
-    prefix = Path(args.output) if args.output else Path(data.label)
     params = {}
     if args.iterations is not None:
         params["iterations"] = args.iterations
@@ -153,7 +154,7 @@ def run(args: argparse.Namespace) -> int:
     payload = result.to_dict()
     payload["input"] = {"source": str(args.input), "n_points": int(len(points)), "normals": source}
     payload["bounds"] = np.column_stack([points.min(axis=0), points.max(axis=0)]).tolist()
-    _write_outputs(prefix, payload, result, points, data, args)
+    _write_outputs(outputs, prefix, payload, result, points, args)
     if not args.quiet:
         table = ", ".join(f"{d.degree}: {d.smoothness:.4f}" for d in result.degrees)
         print(f"selected degree {result.selected_degree} ({result.reason}); smoothness by degree {table}")
@@ -162,28 +163,28 @@ def run(args: argparse.Namespace) -> int:
     return 130 if result.reason == "interrupted" else 0
 
 
-def _beside(prefix: Path, suffix: str) -> Path:
-    return prefix.with_name(prefix.name + suffix)
+def _plan_outputs(args: argparse.Namespace, label: str, dim: int) -> tuple[Path, Outputs]:
+    """The prefix and its outputs, checked (writable, not an input, not a folder) before the fit."""
+    suffixes = [".json"] + ([] if args.no_picture else [".png"])
+    suffixes += [] if args.no_zero_set else ([".ply"] if dim == 3 else [".svg", ".csv"])
+    inputs = [args.input]
+    prefix = fit_prefix(args.output) if args.output else default_prefix(label, suffixes, inputs)
+    return prefix, Outputs([beside(prefix, s) for s in suffixes], inputs=inputs, make_folders=True)
 
 
-def _write_outputs(prefix: Path, payload: dict, result, points, data, args) -> None:
+def _write_outputs(outputs: Outputs, prefix: Path, payload: dict, result, points, args) -> None:
     from ..export import save_zero_set
     from ..zeroset import extract_zero_set
 
-    prepare_output_dir(prefix)
-    with OutputSet() as out:
+    with outputs.writing() as stage:
         zero_set = None
         if not (args.no_zero_set and args.no_picture):
             zero_set = extract_zero_set(result.polynomial, points=points)
         if not args.no_zero_set:
-            if points.shape[1] == 3:
-                save_zero_set(zero_set, out.path(_beside(prefix, ".ply")))
-            else:
-                save_zero_set(zero_set, out.path(_beside(prefix, ".svg")))
-                save_zero_set(zero_set, out.path(_beside(prefix, ".csv")))
+            for suffix in [".ply"] if points.shape[1] == 3 else [".svg", ".csv"]:
+                save_zero_set(zero_set, stage(beside(prefix, suffix)))
         if not args.no_picture:
             from ..plotting import plot_result
 
-            plot_result(payload, points=points, path=out.path(_beside(prefix, ".png")))
-        out.path(_beside(prefix, ".json")).write_text(json.dumps(payload, indent=1), encoding="utf-8")
-        out.commit()
+            plot_result(payload, points=points, path=stage(beside(prefix, ".png")))
+        stage(beside(prefix, ".json")).write_text(json.dumps(payload, indent=1), encoding="utf-8")
