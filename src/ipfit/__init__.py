@@ -7,8 +7,6 @@ adaptive degree selection.
 
 from __future__ import annotations
 
-import importlib
-
 from .exceptions import ConditioningWarning, InvalidInputError, IpfitError, IpfitWarning, ReadError
 
 # Loaded on first use (PEP 562): `ipfit` itself imports in milliseconds, so the command line
@@ -37,6 +35,8 @@ _LAZY = {
 def __getattr__(name: str):
     if name not in _LAZY:
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    import importlib
+
     module = importlib.import_module(f".{_LAZY[name] or name}", __name__)
     value = module if _LAZY[name] is None else getattr(module, name)
     globals()[name] = value

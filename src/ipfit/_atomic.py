@@ -32,9 +32,14 @@ def _folder_of(target: Path) -> Path:
 
 
 def _named(exc: OSError, target: Path) -> OSError:
-    """``exc`` re-aimed at ``target`` when it was about a temporary file (or no file)."""
+    """``exc`` re-aimed at ``target`` when it was about one of its temporary files (or no file).
+
+    Temporary names are ``.NAME.XXXX.partial.SUFFIX``, and a writer's own temporary file for
+    a staged one adds another dot in front, so the dots are stripped before comparing.
+    """
     name = exc.filename
-    if name is None or (isinstance(name, str) and Path(name).name.startswith(f".{target.name}.")):
+    temporary = isinstance(name, str) and Path(name).name.lstrip(".").startswith(f"{target.name.lstrip('.')}.")
+    if name is None or temporary:
         return type(exc)(exc.errno, exc.strerror or str(exc), str(target))
     return exc
 
@@ -43,8 +48,11 @@ def _temporary(target: Path, suffix: str | None) -> Path:
     directory = _folder_of(target)
     if target.is_dir():
         raise IsADirectoryError(errno.EISDIR, os.strerror(errno.EISDIR), str(target))
-    if directory.exists() and not directory.is_dir():
-        raise NotADirectoryError(errno.ENOTDIR, os.strerror(errno.ENOTDIR), str(directory))
+    ancestor = directory
+    while not ancestor.exists() and ancestor != ancestor.parent:
+        ancestor = ancestor.parent
+    if not ancestor.is_dir():  # a file where a folder is needed
+        raise NotADirectoryError(errno.ENOTDIR, os.strerror(errno.ENOTDIR), str(ancestor))
     if not directory.is_dir():
         from .exceptions import InvalidInputError
 

@@ -281,23 +281,23 @@ def fit_adaptive(points: ArrayLike, normals: ArrayLike | None = None, *, method:
         if progress is not None:
             progress({"event": "degree_start", "degree": degree})
         t0 = time.perf_counter()
-        try:
+        try:  # an interrupt anywhere in this degree's work drops only this degree
             poly, solutions, details = _fit_one(method, pts, unit, degree, delta, generator, params, progress,
                                                 far_weight)
+            m = compute_measures(poly, pts, unit, delta=delta)
+            poly = poly.with_coefficients(poly.coefficients, measures=m.to_dict())
+            if rule == "geometric":
+                from .quality import looks_like_contour, quality
+
+                if ordered_contour is None:
+                    ordered_contour = dim == 2 and looks_like_contour(pts)
+                q = quality(poly, pts, faces=faces, ordered_contour=ordered_contour)
+                details = {**details, "quality": q.to_dict()}
         except KeyboardInterrupt:
             if not results:
                 raise
             reason = "interrupted"
             break
-        m = compute_measures(poly, pts, unit, delta=delta)
-        poly = poly.with_coefficients(poly.coefficients, measures=m.to_dict())
-        if rule == "geometric":
-            from .quality import looks_like_contour, quality
-
-            if ordered_contour is None:
-                ordered_contour = dim == 2 and looks_like_contour(pts)
-            q = quality(poly, pts, faces=faces, ordered_contour=ordered_contour)
-            details = {**details, "quality": q.to_dict()}
         entry = DegreeResult(degree, poly, float(m.dissimilarity), float(m.smoothness), float(m.distance),
                              time.perf_counter() - t0, solutions, details)
         results.append(entry)

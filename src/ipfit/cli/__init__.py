@@ -9,27 +9,32 @@ before working and write them with :class:`ipfit.cli._common.Outputs`.
 
 from __future__ import annotations
 
-import argparse
+# Only cheap modules at import time: a Ctrl-C before main() runs would print a traceback,
+# so everything heavier (argparse, signal, numpy, the subcommands) is imported inside main().
 import errno
-import importlib
 import os
-import signal
 import sys
 import warnings
-from typing import Sequence
 
 from ..exceptions import IpfitError, IpfitWarning
+
+TYPE_CHECKING = False  # typing.TYPE_CHECKING without importing typing
+if TYPE_CHECKING:
+    import argparse
+    from typing import Sequence
 
 SUBCOMMANDS = ("fit", "normals", "mesh", "plot", "score", "datasets", "reproduce")
 
 
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str):  # one line, exit 2, as argparse does, but without the usage block
-        self.exit(2, f"{self.prog}: error: {message} (see '{self.prog} --help')\n")
-
-
 def build_parser() -> argparse.ArgumentParser:
+    import argparse
+    import importlib
+
     from .. import __version__
+
+    class _Parser(argparse.ArgumentParser):
+        def error(self, message: str):  # one line, exit 2, as argparse does, but without the usage block
+            self.exit(2, f"{self.prog}: error: {message} (see '{self.prog} --help')\n")
 
     parser = _Parser(prog="ipfit", description="Fit implicit polynomial curves and surfaces to 2D/3D point clouds "
                      "(Interian et al. 2017), with adaptive degree selection.")
@@ -82,11 +87,21 @@ def _interrupted_line(command: str, signum: int, before: int) -> str:
 
     written = _atomic.written_paths()[before:]
     what = ("wrote " + ", ".join(map(str, written))) if written else "nothing was written"
+    import signal
+
     name = "" if signum == signal.SIGINT else f" by {signal.Signals(signum).name}"
     return f"ipfit {command}: interrupted{name}; {what}"
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    try:
+        return _main(argv)
+    except KeyboardInterrupt:  # before the boundary below is in place (still importing)
+        print("ipfit: interrupted; nothing was written", file=sys.stderr)
+        return 130
+
+
+def _main(argv: Sequence[str] | None) -> int:
     """Run one command; the single place where failures become one line and an exit code.
 
     Exit codes: 0 success; 2 a caller error (bad file, option, output path; an OS error
@@ -95,8 +110,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     its traceback, which is a bug. NumPy's floating-point ``RuntimeWarning`` never
     reaches the terminal; other warnings print as one line.
     """
+    import signal
+
     from .. import _atomic
-    from ._common import Interrupted, handle_signals, received_signal
+    from ._common import handle_signals, received_signal
 
     args_list = sys.argv[1:] if argv is None else list(argv)
     command = next((a for a in args_list if a in SUBCOMMANDS), "")
@@ -121,6 +138,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             return 2
         except KeyboardInterrupt as exc:
             signum = getattr(exc, "signum", None) or received_signal() or signal.SIGINT
+            if sys.stderr.isatty():
+                print(file=sys.stderr)  # end a progress line
             print(_interrupted_line(label, signum, before), file=sys.stderr)
             return 128 + signum
         except BrokenPipeError:

@@ -89,8 +89,8 @@ class Interrupted(KeyboardInterrupt):
 
 class _SignalState:
     command = "ipfit"
-    defer = 0  # > 0 while outputs are being written
-    pending: int | None = None  # a signal that arrived while deferred
+    defer: list[str | None] = []  # what is being finished while signals are held (innermost last)
+    pending: int | None = None  # a signal held until a safe moment
     received: int | None = None  # the last signal of this run
 
 
@@ -98,8 +98,10 @@ def _on_signal(signum: int, frame) -> None:
     _SignalState.received = signum
     if _SignalState.defer and _SignalState.pending is None:
         _SignalState.pending = signum
-        print(f"{_SignalState.command}: {signal.Signals(signum).name}: finishing writing the outputs first "
-              "(send it again to abandon them)", file=sys.stderr, flush=True)
+        doing = _SignalState.defer[-1]
+        if doing:
+            print(f"{_SignalState.command}: {signal.Signals(signum).name}: finishing {doing} first "
+                  "(send it again to abandon it)", file=sys.stderr, flush=True)
         return
     raise Interrupted(signum)
 
@@ -111,7 +113,7 @@ def handle_signals(command: str) -> Iterator[None]:
     Python turns only SIGINT into ``KeyboardInterrupt``; SIGTERM would otherwise kill the
     process without running a single ``finally``, leaving temporary files behind.
     """
-    _SignalState.command, _SignalState.defer, _SignalState.pending, _SignalState.received = command, 0, None, None
+    _SignalState.command, _SignalState.defer, _SignalState.pending, _SignalState.received = command, [], None, None
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -124,19 +126,39 @@ def handle_signals(command: str) -> Iterator[None]:
 
 
 @contextlib.contextmanager
-def deferred_signals() -> Iterator[None]:
-    """Hold SIGINT/SIGTERM until the block ends, so an interrupt never loses finished work.
+def deferred_signals(doing: str | None = None) -> Iterator[None]:
+    """Hold SIGINT/SIGTERM during the block, so an interrupt never loses finished work.
 
-    The process then ends as interrupted (:func:`received_signal` tells the boundary);
-    a second signal during the block abandons it.
+    A held signal stays pending (the run then ends as interrupted, see
+    :func:`received_signal`, or :func:`stop_at_iterations` raises it at a safe moment); a
+    second signal during the block abandons it. ``doing`` is named in the one line
+    printed when a signal is held.
     """
-    _SignalState.defer += 1
+    _SignalState.defer.append(doing)
     try:
         yield
     finally:
-        _SignalState.defer -= 1
-        if not _SignalState.defer:
-            _SignalState.pending = None
+        _SignalState.defer.pop()
+
+
+def stop_at_iterations(progress: Callable[[dict], None] | None) -> Callable[[dict], None]:
+    """Wrap a ``fit_adaptive`` progress callback so an interrupt stops the fit where it is safe.
+
+    ``fit_adaptive`` keeps the finished degrees only when the interrupt arrives inside a
+    degree's optimisation; a signal arriving while the callback itself runs (printing the
+    finished degree, say) is held and raised at the next iteration event, which comes from
+    inside the optimisation. Without further iterations the fit completes and the run still
+    ends as interrupted, with everything written.
+    """
+    def call(event: dict) -> None:
+        with deferred_signals():
+            if progress is not None:
+                progress(event)
+        if event.get("event") == "iteration" and _SignalState.pending is not None:
+            signum, _SignalState.pending = _SignalState.pending, None
+            raise Interrupted(signum)
+
+    return call
 
 
 def received_signal() -> int | None:
@@ -262,12 +284,16 @@ class Outputs:
 
     @contextlib.contextmanager
     def writing(self) -> Iterator[Callable[[str | os.PathLike], Path]]:
-        with deferred_signals():
+        with deferred_signals("writing the outputs"):
             try:
                 yield self._stage
                 for final, tmp in self._staged.items():
                     if final in self._used:
                         _atomic.publish(tmp, final)
+            except OSError as exc:
+                for final in self._staged:  # name the output, not its temporary file
+                    exc = _atomic._named(exc, final)
+                raise exc from None
             finally:
                 self.discard()
 

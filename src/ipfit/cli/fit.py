@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from ._common import (Outputs, beside, default_prefix, finite_float, fit_prefix, load_input, nonnegative_float,
-                      positive_int, show_progress)
+                      positive_int, show_progress, stop_at_iterations)
 
 NAME = "fit"
 HELP = "fit an implicit polynomial to a point file or a bundled dataset"
@@ -145,7 +145,7 @@ def run(args: argparse.Namespace) -> int:
     if args.paper:
         method, far_weight, rule = "de", 0.0, "paper"
         params.update(search_space="coefficients", seeds=["lstsq", "3l"])
-    progress = _Progress(show_progress(args.quiet), args.iterations or 500)
+    progress = stop_at_iterations(_Progress(show_progress(args.quiet), args.iterations or 500))
     lo = degree if degree is not None else 2
     hi = degree if degree is not None else args.max_degree
     result = fit_adaptive(points, normals, method=method, min_degree=lo, max_degree=hi, epsilon=args.epsilon,
