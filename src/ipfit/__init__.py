@@ -7,6 +7,9 @@ adaptive degree selection.
 
 from __future__ import annotations
 
+import sys
+import types
+
 from .exceptions import ConditioningWarning, InvalidInputError, IpfitError, IpfitWarning, ReadError
 
 # Loaded on first use (PEP 562): `ipfit` itself imports in milliseconds, so the command line
@@ -30,6 +33,18 @@ _LAZY = {
     "outward_vertices": "solid", "winding_number": "solid",
     "ZeroSet": "zeroset", "extract_zero_set": "zeroset", "grid_values": "zeroset",
 }
+
+
+class _Package(types.ModuleType):
+    def __setattr__(self, name: str, value) -> None:
+        # importing the submodule ipfit.quality (or .refine) must not hide the function of that
+        # name, exactly as the eager `from .quality import quality` used to rebind it
+        if isinstance(value, types.ModuleType) and _LAZY.get(name) == name:
+            return
+        super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _Package
 
 
 def __getattr__(name: str):

@@ -125,11 +125,15 @@ def _main(argv: Sequence[str] | None) -> int:
         warnings.showwarning = _warning_line(label)
         try:
             parser = build_parser()
-            args = parser.parse_args(argv)
+            args, extra = parser.parse_known_args(argv)
             if not getattr(args, "command", None):
                 parser.print_help()
                 return 2
             command = label = args.command
+            if extra:  # argparse would name the top-level parser, not the command
+                print(f"ipfit {label}: error: unrecognized arguments: {' '.join(extra)} "
+                      f"(see 'ipfit {label} --help')", file=sys.stderr)
+                return 2
             code = int(args._run(args) or 0)
             signum = received_signal()
             return 128 + signum if signum and code in (0, 130) else code

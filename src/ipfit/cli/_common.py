@@ -213,11 +213,13 @@ def default_prefix(stem: str, suffixes: Sequence[str], inputs: Sequence[str | os
 
     Examples
     --------
-    >>> import os, tempfile
-    >>> os.chdir(tempfile.mkdtemp())
-    >>> _ = open("heart.csv", "w").write("x,y\n")
-    >>> default_prefix("heart", [".json", ".csv"], inputs=["heart.csv"])
-    PosixPath('heart-fit')
+    >>> import pathlib, tempfile
+    >>> folder = pathlib.Path(tempfile.mkdtemp())
+    >>> _ = (folder / "heart.csv").write_text("x,y")
+    >>> default_prefix(str(folder / "heart"), [".json", ".csv"], inputs=[folder / "heart.csv"]).name
+    'heart-fit'
+    >>> default_prefix(str(folder / "heart"), [".json", ".png"], inputs=[folder / "heart.csv"]).name
+    'heart'
     """
     files = _input_files(inputs)
     for candidate in (Path(stem), Path(f"{stem}-fit")):
