@@ -118,7 +118,8 @@ def run_cli(argv: list[str], cwd: Path) -> tuple[int | None, str, BaseException 
     return code, err.getvalue(), None
 
 
-def judge_cli(tally: Tally, category: str, argv: list[str], cwd: Path, inputs=(), allow_success=True) -> None:
+def judge_cli(tally: Tally, category: str, argv: list[str], cwd: Path, inputs=(), allow_success=True,
+              note: str = "") -> None:
     """Run one command-line case and count it."""
     before = digest(inputs)
     listing = set(os.listdir(cwd))
@@ -141,7 +142,7 @@ def judge_cli(tally: Tally, category: str, argv: list[str], cwd: Path, inputs=()
         with contextlib.suppress(OSError):
             p.unlink() if p.is_file() else shutil.rmtree(p)
     modified = sum(digest([k]).get(k) != v for k, v in before.items())
-    tally.add(category, clean=True, foreign=foreign, reproducer="ipfit " + " ".join(argv), leftovers=leftovers,
+    tally.add(category, clean=True, foreign=foreign, reproducer=note + "ipfit " + " ".join(argv), leftovers=leftovers,
               modified=modified)
     for name in set(os.listdir(cwd)) - listing:  # keep the folder as it was for the next case
         p = cwd / name
@@ -298,10 +299,11 @@ def corrupted_results(tally: Tally, work: Path, data: Path, result: Path, n_valu
             label = f"{key} = {value!r}"
             judge_api(tally, "corrupted result JSON (API)", f"ImplicitPolynomial.from_dict(<result with {label}>)",
                       lambda: ipfit.ImplicitPolynomial.from_dict(json.loads(path.read_text())))
+            note = f"bad.json = a result with {label}: "
             judge_cli(tally, "corrupted result JSON (CLI)", ["mesh", "bad.json", "-o", "m.svg", "--resolution", "64"],
-                      work, [path, data])
+                      work, [path, data], note=note)
             judge_cli(tally, "corrupted result JSON (CLI)", ["score", "bad.json", data.name, "--resolution", "64"],
-                      work, [path, data])
+                      work, [path, data], note=note)
     judge_api(tally, "corrupted result JSON (API)", "ImplicitPolynomial.from_json(None)",
               lambda: ipfit.ImplicitPolynomial.from_json(None))
 
@@ -401,6 +403,7 @@ def fuzz(tally: Tally, work: Path, seeds: dict[str, Path], per_format: int, seed
                     with warnings.catch_warnings():
                         warnings.simplefilter("ignore")
                         ipfit.read_points(target)
+                        ipfit.read_mesh(target)
                 except IpfitError:
                     pass
                 except _Timeout:
@@ -417,7 +420,7 @@ def fuzz(tally: Tally, work: Path, seeds: dict[str, Path], per_format: int, seed
                     keep.parent.mkdir(exist_ok=True)
                     keep.write_bytes(mutated)
                 tally.add(f"fuzzing {label}", clean=True, foreign=foreign,
-                          reproducer=f"read_points({keep}) ({kind} of {path.name})" if keep else "")
+                          reproducer=f"read_points/read_mesh({keep}) ({kind} of {path.name})" if keep else "")
     finally:
         signal.signal(signal.SIGALRM, previous)
 
@@ -431,10 +434,11 @@ def signals(tally: Tally, work: Path, data: Path, n: int, seed: int) -> None:
         folder.mkdir()
         shutil.copy(data, folder / data.name)
         sig = rng.choice([signal.SIGINT, signal.SIGTERM])
-        slow_write = case % 3 == 2
-        delay = rng.uniform(0.0, 4.0)
+        slow_write, long_fit = case % 4 == 2, case % 4 == 3
+        delay = rng.uniform(0.0, 8.0 if long_fit else 4.0)
         extra = {"IPFIT_TEST_WRITE_DELAY": "0.4"} if slow_write else {}
-        argv = ["fit", data.name, "-o", "r", "--degree", "2", "--method", "3l"]
+        argv = (["fit", data.name, "-o", "r", "--method", "de", "--iterations", "300", "--max-degree", "4"] if long_fit
+                else ["fit", data.name, "-o", "r", "--degree", "2", "--method", "3l"])
         proc = subprocess.Popen([sys.executable, "-m", "ipfit.cli", *argv], cwd=folder, env={**env, **extra},
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         time.sleep(delay)

@@ -127,6 +127,8 @@ def _main(argv: Sequence[str] | None) -> int:
             parser = build_parser()
             args, extra = parser.parse_known_args(argv)
             if not getattr(args, "command", None):
+                if extra:
+                    parser.error(f"unrecognized arguments: {' '.join(extra)}")
                 parser.print_help()
                 return 2
             command = label = args.command
