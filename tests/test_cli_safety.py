@@ -423,3 +423,19 @@ def test_closed_stdout_is_not_an_error(tmp_path):
                             env=_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     out, err = proc.communicate(timeout=120)
     assert len(out) == 10 and err == ""
+
+
+def test_the_command_line_owns_ctrl_c_before_numpy_loads():
+    """`import ipfit.cli` (what the console script runs before main) loads no numpy, scipy or
+    matplotlib, so a Ctrl-C during their import happens inside main's boundary."""
+    code = "import sys, ipfit.cli; print(sorted({'numpy', 'scipy', 'matplotlib'} & set(sys.modules)))"
+    out = subprocess.run([sys.executable, "-c", code], env=_env(), capture_output=True, text=True, timeout=120)
+    assert out.stdout.strip() == "[]", out.stderr
+
+
+def test_lazy_package_keeps_functions_named_like_their_modules():
+    import ipfit.quality
+    import ipfit.refine
+
+    assert callable(ipfit.quality) and callable(ipfit.refine) and callable(ipfit.fit_adaptive)
+    assert set(ipfit.__all__) <= set(dir(ipfit))

@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Iterator
 
 __all__ = ["atomic_path", "write_text_atomic", "write_bytes_atomic", "reserve", "publish", "discard_temporaries",
-           "written_paths"]
+           "written_paths", "remove_temporary", "aimed_at"]
 
 #: Bytes written by :func:`reserve` to prove the folder takes a file (space, permissions).
 PROBE_BYTES = 4096
@@ -31,7 +31,7 @@ def _folder_of(target: Path) -> Path:
     return target.parent if str(target.parent) else Path(".")
 
 
-def _named(exc: OSError, target: Path) -> OSError:
+def aimed_at(exc: OSError, target: Path) -> OSError:
     """``exc`` re-aimed at ``target`` when it was about one of its temporary files (or no file).
 
     Temporary names are ``.NAME.XXXX.partial.SUFFIX``, and a writer's own temporary file for
@@ -61,13 +61,14 @@ def _temporary(target: Path, suffix: str | None) -> Path:
         fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".partial" + (
             suffix if suffix is not None else target.suffix), dir=directory)
     except OSError as exc:
-        raise _named(exc, target) from None
+        raise aimed_at(exc, target) from None
     os.close(fd)
     _live.add(Path(tmp))
     return Path(tmp)
 
 
-def _remove(tmp: Path) -> None:
+def remove_temporary(tmp: Path) -> None:
+    """Delete one temporary file (if still there) and forget it."""
     with contextlib.suppress(FileNotFoundError):
         tmp.unlink()
     _live.discard(tmp)
@@ -89,7 +90,7 @@ def publish(tmp: Path, target: str | os.PathLike) -> None:
         os.chmod(tmp, 0o666 & ~mask)  # mkstemp creates 0600 files
         os.replace(tmp, target)
     except OSError as exc:
-        raise _named(exc, target) from None
+        raise aimed_at(exc, target) from None
     _live.discard(tmp)
     _written.append(target)
 
@@ -117,10 +118,10 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
             yield tmp
             _test_delay()
         except OSError as exc:
-            raise _named(exc, target) from None
+            raise aimed_at(exc, target) from None
         publish(tmp, target)
     finally:
-        _remove(tmp)
+        remove_temporary(tmp)
 
 
 def reserve(path: str | os.PathLike, make_folders: bool = True) -> Path:
@@ -144,7 +145,7 @@ def reserve(path: str | os.PathLike, make_folders: bool = True) -> Path:
         except FileExistsError:
             continue
         except OSError as exc:
-            raise _named(exc, target) from None
+            raise aimed_at(exc, target) from None
         _created_dirs.append(folder)
     tmp = _temporary(target, None)
     try:
@@ -154,15 +155,15 @@ def reserve(path: str | os.PathLike, make_folders: bool = True) -> Path:
             os.fsync(fh.fileno())
         os.truncate(tmp, 0)
     except OSError as exc:
-        _remove(tmp)
-        raise _named(exc, target) from None
+        remove_temporary(tmp)
+        raise aimed_at(exc, target) from None
     return tmp
 
 
 def discard_temporaries() -> None:
     """Remove every temporary file still pending, and the output folders made that stayed empty."""
     for tmp in list(_live):
-        _remove(tmp)
+        remove_temporary(tmp)
     for folder in reversed(_created_dirs):
         with contextlib.suppress(OSError):
             folder.rmdir()

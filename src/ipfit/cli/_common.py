@@ -277,7 +277,7 @@ class Outputs:
 
     def discard(self) -> None:
         for tmp in self._staged.values():
-            _atomic._remove(tmp)
+            _atomic.remove_temporary(tmp)
         self._staged.clear()
 
     def _stage(self, final: str | os.PathLike) -> Path:
@@ -294,14 +294,10 @@ class Outputs:
                         _atomic.publish(tmp, final)
             except OSError as exc:
                 for final in self._staged:  # name the output, not its temporary file
-                    exc = _atomic._named(exc, final)
+                    exc = _atomic.aimed_at(exc, final)
                 raise exc from None
             finally:
                 self.discard()
-
-    @property
-    def paths(self) -> list[Path]:
-        return list(self._staged)
 
 
 def show_progress(quiet: bool) -> bool:
