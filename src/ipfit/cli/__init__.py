@@ -94,14 +94,6 @@ def _interrupted_line(command: str, signum: int, before: int) -> str:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    try:
-        return _main(argv)
-    except KeyboardInterrupt:  # before the boundary below is in place (still importing)
-        print("ipfit: interrupted; nothing was written", file=sys.stderr)
-        return 130
-
-
-def _main(argv: Sequence[str] | None) -> int:
     """Run one command; the single place where failures become one line and an exit code.
 
     Exit codes: 0 success; 2 a caller error (bad file, option, output path; an OS error
@@ -110,6 +102,14 @@ def _main(argv: Sequence[str] | None) -> int:
     its traceback, which is a bug. NumPy's floating-point ``RuntimeWarning`` never
     reaches the terminal; other warnings print as one line.
     """
+    try:
+        return _main(argv)
+    except KeyboardInterrupt:  # before the boundary below is in place (still importing)
+        print("ipfit: interrupted; nothing was written", file=sys.stderr)
+        return 130
+
+
+def _main(argv: Sequence[str] | None) -> int:
     import signal
 
     from .. import _atomic
