@@ -7,23 +7,62 @@ adaptive degree selection.
 
 from __future__ import annotations
 
-from . import basis, optimize
+import sys
+import types
+
 from .exceptions import ConditioningWarning, InvalidInputError, IpfitError, IpfitWarning, ReadError
-from .linear import LINEAR_METHODS, fit_3l, fit_gradient_one, fit_linear, fit_lstsq, fit_ridge, fit_taubin
-from .adaptive import AdaptiveResult, DegreeResult, fit_adaptive, select_degree
-from .export import save_zero_set
-from .datasets import dataset_names, list_datasets, load_dataset
-from .farfield import FarFieldTerm, far_field_samples
-from .io import read_mesh, read_points, write_points
-from .normals import contour_normals, estimate_normals, normal_agreement, orient_normals
-from .objective import Measures, Objective, measures
-from .options import PAPER, PAPER_METHOD, PAPER_RULE, RECOMMENDED, SearchOptions
-from .plotting import plot_curve, plot_result, plot_smoothness, plot_surface
-from .polynomial import ImplicitPolynomial, Normalization
-from .quality import Quality, quality
-from .refine import REFINE_METHODS, RefineResult, refine
-from .solid import outward_vertices, winding_number
-from .zeroset import ZeroSet, extract_zero_set, grid_values
+
+# Loaded on first use (PEP 562): `ipfit` itself imports in milliseconds, so the command line
+# owns SIGINT before numpy/scipy load and a Ctrl-C at start-up never prints a traceback.
+_LAZY = {
+    "basis": None, "optimize": None,
+    "LINEAR_METHODS": "linear", "fit_3l": "linear", "fit_gradient_one": "linear", "fit_linear": "linear",
+    "fit_lstsq": "linear", "fit_ridge": "linear", "fit_taubin": "linear",
+    "AdaptiveResult": "adaptive", "DegreeResult": "adaptive", "fit_adaptive": "adaptive", "select_degree": "adaptive",
+    "save_zero_set": "export",
+    "dataset_names": "datasets", "list_datasets": "datasets", "load_dataset": "datasets",
+    "FarFieldTerm": "farfield", "far_field_samples": "farfield",
+    "read_mesh": "io", "read_points": "io", "write_points": "io",
+    "contour_normals": "normals", "estimate_normals": "normals", "normal_agreement": "normals",
+    "orient_normals": "normals",
+    "Measures": "objective", "Objective": "objective", "measures": "objective",
+    "plot_curve": "plotting", "plot_result": "plotting", "plot_smoothness": "plotting", "plot_surface": "plotting",
+    "ImplicitPolynomial": "polynomial", "Normalization": "polynomial",
+    "Quality": "quality", "quality": "quality",
+    "REFINE_METHODS": "refine", "RefineResult": "refine", "refine": "refine",
+    "SearchOptions": "options", "RECOMMENDED": "options", "PAPER": "options", "PAPER_METHOD": "options",
+    "PAPER_RULE": "options",
+    "outward_vertices": "solid", "winding_number": "solid",
+    "ZeroSet": "zeroset", "extract_zero_set": "zeroset", "grid_values": "zeroset",
+}
+
+
+class _Package(types.ModuleType):
+    def __setattr__(self, name: str, value) -> None:
+        # importing the submodule ipfit.quality (or .refine) must not hide the function of that
+        # name, exactly as the eager `from .quality import quality` used to rebind it
+        if isinstance(value, types.ModuleType) and _LAZY.get(name) == name:
+            return
+        super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _Package
+
+
+def __getattr__(name: str):
+    if name not in _LAZY:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    import importlib
+
+    module = importlib.import_module(f".{_LAZY[name] or name}", __name__)
+    value = module if _LAZY[name] is None else getattr(module, name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY))
+
 
 __version__ = "0.1.0"
 

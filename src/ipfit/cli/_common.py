@@ -1,16 +1,20 @@
-"""Helpers shared by the subcommands: input resolution, option types and all-or-nothing output."""
+"""Helpers shared by the subcommands: input resolution, option types, signals and all-or-nothing output."""
 
 from __future__ import annotations
 
 import argparse
 import contextlib
+import json
 import os
+import signal
 import sys
+import threading
 from pathlib import Path
-from typing import NamedTuple
+from typing import Callable, Iterator, NamedTuple, Sequence
 
 import numpy as np
 
+from .. import _atomic
 from ..exceptions import InvalidInputError, ReadError
 
 
@@ -75,46 +79,225 @@ def nonnegative_float(text: str) -> float:
     return value
 
 
-class OutputSet:
-    """Files written all together or not at all.
+class Interrupted(KeyboardInterrupt):
+    """SIGINT or SIGTERM, raised in the main thread; ``signum`` says which."""
 
-    ``path(final)`` gives a temporary path beside ``final``; ``commit()`` renames every one
-    into place; leaving the ``with`` block without ``commit()`` removes them all.
+    def __init__(self, signum: int = signal.SIGINT) -> None:
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+class _SignalState:
+    command = "ipfit"
+    defer: list[str | None] = []  # what is being finished while signals are held (innermost last)
+    pending: int | None = None  # a signal held until a safe moment
+    received: int | None = None  # the last signal of this run
+
+
+def _on_signal(signum: int, frame) -> None:
+    _SignalState.received = signum
+    if _SignalState.defer and _SignalState.pending is None:
+        _SignalState.pending = signum
+        doing = _SignalState.defer[-1]
+        if doing:
+            print(f"{_SignalState.command}: {signal.Signals(signum).name}: finishing {doing} first "
+                  "(send it again to abandon it)", file=sys.stderr, flush=True)
+        return
+    raise Interrupted(signum)
+
+
+@contextlib.contextmanager
+def handle_signals(command: str) -> Iterator[None]:
+    """SIGINT and SIGTERM both raise :class:`Interrupted` in the main thread (restored on exit).
+
+    Python turns only SIGINT into ``KeyboardInterrupt``; SIGTERM would otherwise kill the
+    process without running a single ``finally``, leaving temporary files behind.
+    """
+    _SignalState.command, _SignalState.defer, _SignalState.pending, _SignalState.received = command, [], None, None
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = {sig: signal.signal(sig, _on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
+@contextlib.contextmanager
+def deferred_signals(doing: str | None = None) -> Iterator[None]:
+    """Hold SIGINT/SIGTERM during the block, so an interrupt never loses finished work.
+
+    A held signal stays pending (the run then ends as interrupted, see
+    :func:`received_signal`, or :func:`stop_at_iterations` raises it at a safe moment); a
+    second signal during the block abandons it. ``doing`` is named in the one line
+    printed when a signal is held.
+    """
+    _SignalState.defer.append(doing)
+    try:
+        yield
+    finally:
+        _SignalState.defer.pop()
+
+
+def stop_at_iterations(progress: Callable[[dict], None] | None) -> Callable[[dict], None]:
+    """Wrap a ``fit_adaptive`` progress callback so an interrupt stops the fit where it is safe.
+
+    ``fit_adaptive`` keeps the finished degrees only when the interrupt arrives inside a
+    degree's optimisation; a signal arriving while the callback itself runs (printing the
+    finished degree, say) is held and raised at the next iteration event, which comes from
+    inside the optimisation. Without further iterations the fit completes and the run still
+    ends as interrupted, with everything written.
+    """
+    def call(event: dict) -> None:
+        with deferred_signals():
+            if progress is not None:
+                progress(event)
+        if event.get("event") == "iteration" and _SignalState.pending is not None:
+            signum, _SignalState.pending = _SignalState.pending, None
+            raise Interrupted(signum)
+
+    return call
+
+
+def received_signal() -> int | None:
+    """The signal (SIGINT/SIGTERM) received during this run, or None."""
+    return _SignalState.received
+
+
+#: What ``ipfit fit`` writes beside its prefix; a suffix in ``fit -o`` names one of them.
+FIT_SUFFIXES = (".json", ".png", ".ply", ".svg", ".csv")
+
+
+def beside(prefix: Path, suffix: str) -> Path:
+    return prefix.with_name(prefix.name + suffix)
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    if a.exists() and b.exists():
+        with contextlib.suppress(OSError):
+            return os.path.samefile(a, b)
+    return a.resolve() == b.resolve()
+
+
+def _input_files(inputs: Sequence[str | os.PathLike | None]) -> list[Path]:
+    return [Path(p) for p in inputs if p is not None and Path(p).is_file()]
+
+
+def recorded_source(result: dict) -> str | None:
+    """The data file a result records (``"input": {"source": ...}``), or None."""
+    recorded = result.get("input") if isinstance(result, dict) else None
+    source = recorded.get("source") if isinstance(recorded, dict) else None
+    return source if isinstance(source, str) else None
+
+
+def _is_ipfit_result(path: Path) -> bool:
+    from ..polynomial import FORMAT_NAME
+
+    try:
+        with open(path, encoding="utf-8") as fh:
+            return json.load(fh).get("format") == FORMAT_NAME
+    except (OSError, ValueError, AttributeError):
+        return False
+
+
+def default_prefix(stem: str, suffixes: Sequence[str], inputs: Sequence[str | os.PathLike | None] = ()) -> Path:
+    """The default output prefix: ``STEM``, else ``STEM-fit``, so that no user file is replaced.
+
+    A default output may replace only a previous result of the same prefix: an existing
+    ``PREFIX.json`` with ``"format": "ipfit"`` marks the files beside it as ipfit's own.
+    Any other existing file (an input above all, e.g. ``heart.csv`` for ``ipfit fit
+    heart.csv``) moves the default to ``STEM-fit``; when that collides too, the caller
+    must pass ``-o``.
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> folder = pathlib.Path(tempfile.mkdtemp())
+    >>> _ = (folder / "heart.csv").write_text("x,y")
+    >>> default_prefix(str(folder / "heart"), [".json", ".csv"], inputs=[folder / "heart.csv"]).name
+    'heart-fit'
+    >>> default_prefix(str(folder / "heart"), [".json", ".png"], inputs=[folder / "heart.csv"]).name
+    'heart'
+    """
+    files = _input_files(inputs)
+    for candidate in (Path(stem), Path(f"{stem}-fit")):
+        own = _is_ipfit_result(beside(candidate, ".json"))
+        clash = [p for p in (beside(candidate, s) for s in suffixes)
+                 if p.exists() or p.is_symlink()]
+        if all(own and p.is_file() and not any(_same_file(p, f) for f in files) for p in clash):
+            return candidate
+    raise InvalidInputError(f"--output: the default outputs {stem}.* and {stem}-fit.* would replace files ipfit did "
+                            "not write. Pass -o PREFIX to choose where the results go.")
+
+
+def fit_prefix(output: str) -> Path:
+    """``fit -o``: a prefix, or one of the output files (``pfx.json``) naming the prefix."""
+    path = Path(output)
+    return path.with_suffix("") if path.suffix.lower() in FIT_SUFFIXES else path
+
+
+class Outputs:
+    """Output files checked before the work starts and written all together or not at all.
+
+    Construction checks every path (not a folder, not one of ``inputs``, an allowed
+    extension) and reserves its temporary sibling, which proves the folder exists (or,
+    with ``make_folders``, can be made), is writable and has room; on any failure nothing
+    is left behind. Then::
+
+        with outputs.writing() as stage:
+            writer(stage(final))          # write each output to its staged path
+
+    renames every staged file into place when the block ends normally, removes them all
+    when it raises, and holds SIGINT/SIGTERM meanwhile so finished work is not lost.
     """
 
-    def __init__(self) -> None:
-        self._pending: list[tuple[Path, Path]] = []
-        self.written: list[Path] = []
+    def __init__(self, paths: Sequence[str | os.PathLike], *, inputs: Sequence[str | os.PathLike | None] = (),
+                 option: str = "--output", suffixes: Sequence[str] | None = None, make_folders: bool = False) -> None:
+        self._staged: dict[Path, Path] = {}
+        self._used: set[Path] = set()
+        files = _input_files(inputs)
+        try:
+            for final in map(Path, paths):
+                if suffixes is not None and final.suffix.lower() not in suffixes:
+                    raise InvalidInputError(f"{option}: cannot write '{final.suffix or final.name}' files, got "
+                                            f"{final}. Use one of: {', '.join(suffixes)}.")
+                if final.is_dir():
+                    raise InvalidInputError(f"{option}: {final} is a folder. Choose a file name (a file inside "
+                                            "that folder works too).")
+                source = next((f for f in files if _same_file(final, f)), None)
+                if source is not None:
+                    raise InvalidInputError(f"{option}: {final} is the input file {source}; writing it would "
+                                            "destroy the data. Choose another output path.")
+                self._staged[final] = _atomic.reserve(final, make_folders)
+        except BaseException:
+            self.discard()
+            raise
 
-    def path(self, final: str | os.PathLike) -> Path:
-        final = Path(final)
-        tmp = final.with_name(f".{final.name}.partial{final.suffix}")
-        self._pending.append((tmp, final))
-        return tmp
+    def discard(self) -> None:
+        for tmp in self._staged.values():
+            _atomic.remove_temporary(tmp)
+        self._staged.clear()
 
-    def commit(self) -> list[Path]:
-        for tmp, final in self._pending:
-            if tmp.exists():
-                os.replace(tmp, final)
-                self.written.append(final)
-        self._pending.clear()
-        return self.written
+    def _stage(self, final: str | os.PathLike) -> Path:
+        self._used.add(Path(final))
+        return self._staged[Path(final)]
 
-    def __enter__(self) -> "OutputSet":
-        return self
-
-    def __exit__(self, *exc) -> None:
-        for tmp, _ in self._pending:
-            with contextlib.suppress(FileNotFoundError):
-                tmp.unlink()
-        self._pending.clear()
-
-
-def prepare_output_dir(prefix: Path) -> None:
-    parent = prefix.parent
-    if parent.exists() and not parent.is_dir():
-        raise InvalidInputError(f"--output: {parent} exists and is not a folder. Choose another output prefix.")
-    parent.mkdir(parents=True, exist_ok=True)
+    @contextlib.contextmanager
+    def writing(self) -> Iterator[Callable[[str | os.PathLike], Path]]:
+        with deferred_signals("writing the outputs"):
+            try:
+                yield self._stage
+                for final, tmp in self._staged.items():
+                    if final in self._used:
+                        _atomic.publish(tmp, final)
+            except OSError as exc:
+                for final in self._staged:  # name the output, not its temporary file
+                    exc = _atomic.aimed_at(exc, final)
+                raise exc from None
+            finally:
+                self.discard()
 
 
 def show_progress(quiet: bool) -> bool:

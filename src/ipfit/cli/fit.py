@@ -10,8 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ._common import (OutputSet, cli_names, finite_float, load_input, nonnegative_float, nonnegative_int,
-                      positive_int, prepare_output_dir)
+from ._common import (Outputs, beside, cli_names, default_prefix, finite_float, fit_prefix, load_input,
+                      nonnegative_float, nonnegative_int, positive_int, stop_at_iterations)
 from ._progress import Progress, progress_mode
 
 # Library parameter -> the option the user typed, for error messages.
@@ -142,16 +142,17 @@ def run(args: argparse.Namespace) -> int:
                                 f"points, the input has {len(points)}. Lower the degree.")
     if args.normals == "file" and normals is None:
         raise InvalidInputError(f"--normals file: {args.input} has no normals. Use --normals estimate.")
+    prefix, outputs = _plan_outputs(args, data.label, dim)
     source = "file"
     if normals is None or args.normals == "estimate":
         from ..normals import estimate_normals
 
         normals = estimate_normals(points)
         source = "estimated"
-    prefix = Path(args.output) if args.output else Path(data.label)
     method, options, rule = search_settings(args)
     resolved = options.for_method(method) if options is not None else {}
-    progress = Progress(progress_mode(args.quiet), resolved.get("iterations"), resolved.get("polish_iterations"))
+    shown = Progress(progress_mode(args.quiet), resolved.get("iterations"), resolved.get("polish_iterations"))
+    progress = stop_at_iterations(shown)
     lo = degree if degree is not None else 2
     hi = degree if degree is not None else args.max_degree
     try:
@@ -160,13 +161,13 @@ def run(args: argparse.Namespace) -> int:
                                   epsilon=args.epsilon, delta=args.delta, rule=rule, faces=data.faces, rng=args.seed,
                                   progress=progress)
     finally:
-        progress.close()
+        shown.close()
     payload = result.to_dict()
     payload["input"] = {"source": str(args.input), "n_points": int(len(points)), "normals": source}
     if Path(args.input).exists():  # found again by ipfit plot/mesh/score from any folder
         payload["input"]["path"] = str(Path(args.input).resolve())
     payload["bounds"] = np.column_stack([points.min(axis=0), points.max(axis=0)]).tolist()
-    _write_outputs(prefix, payload, result, points, normals, data, args)
+    _write_outputs(outputs, prefix, payload, result, points, normals, data, args)
     if not args.quiet:
         table = ", ".join(f"{d.degree}: {d.smoothness:.4f}" for d in result.degrees)
         for entry in result.degrees:
@@ -181,32 +182,33 @@ def run(args: argparse.Namespace) -> int:
     return 130 if result.reason == "interrupted" else 0
 
 
-def _beside(prefix: Path, suffix: str) -> Path:
-    return prefix.with_name(prefix.name + suffix)
+def _plan_outputs(args: argparse.Namespace, label: str, dim: int) -> tuple[Path, Outputs]:
+    """The prefix and its outputs, checked (writable, not an input, not a folder) before the fit."""
+    suffixes = [".json"] + ([] if args.no_picture else [".png"])
+    suffixes += [] if args.no_zero_set else ([".ply"] if dim == 3 else [".svg", ".csv"])
+    suffixes += [".html"] if args.html else []
+    inputs = [args.input]
+    prefix = fit_prefix(args.output) if args.output else default_prefix(label, suffixes, inputs)
+    return prefix, Outputs([beside(prefix, s) for s in suffixes], inputs=inputs, make_folders=True)
 
 
-def _write_outputs(prefix: Path, payload: dict, result, points, normals, data, args) -> None:
+def _write_outputs(outputs: Outputs, prefix: Path, payload: dict, result, points, normals, data, args) -> None:
     from ..export import save_zero_set
     from ..zeroset import extract_zero_set
 
-    prepare_output_dir(prefix)
-    with OutputSet() as out:
+    with outputs.writing() as stage:
         zero_set = None
         if not (args.no_zero_set and args.no_picture):
             zero_set = extract_zero_set(result.polynomial, points=points)
         if not args.no_zero_set:
-            if points.shape[1] == 3:
-                save_zero_set(zero_set, out.path(_beside(prefix, ".ply")))
-            else:
-                save_zero_set(zero_set, out.path(_beside(prefix, ".svg")))
-                save_zero_set(zero_set, out.path(_beside(prefix, ".csv")))
+            for suffix in [".ply"] if points.shape[1] == 3 else [".svg", ".csv"]:
+                save_zero_set(zero_set, stage(beside(prefix, suffix)))
         if not args.no_picture:
             from ..plotting import plot_result
 
-            plot_result(payload, points=points, path=out.path(_beside(prefix, ".png")))
+            plot_result(payload, points=points, path=stage(beside(prefix, ".png")))
         if args.html:
             from ..viewer import write_html
 
-            write_html(payload, points, out.path(_beside(prefix, ".html")), faces=data.faces, normals=normals)
-        out.path(_beside(prefix, ".json")).write_text(json.dumps(payload, indent=1), encoding="utf-8")
-        out.commit()
+            write_html(payload, points, stage(beside(prefix, ".html")), faces=data.faces, normals=normals)
+        stage(beside(prefix, ".json")).write_text(json.dumps(payload, indent=1), encoding="utf-8")

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from ._common import nonnegative_float, positive_int
+from ._common import Outputs, nonnegative_float, positive_int, recorded_source
 
 NAME = "mesh"
 HELP = "extract the zero set of a result: mesh (PLY/OBJ/STL) in 3D, curves (SVG/CSV) in 2D"
@@ -90,13 +90,18 @@ def run(args: argparse.Namespace) -> int:
 
     from ..plotting import load_result
 
+    from ..export import CURVE_FORMATS, MESH_FORMATS
+
     data = load_result(args.result)
+    outputs = Outputs([args.output], inputs=[args.result, args.points, recorded_source(data)],
+                      suffixes=MESH_FORMATS + CURVE_FORMATS)
     view = result_view(data, source=args.result)
     poly = pick_polynomial(view, args.degree, args.result)
     points, _ = load_points(args.points, poly.dim, data)
     box = box_for(view, points, args.margin)
     zero_set = extract_zero_set(poly, bounds=box, resolution=args.resolution)
-    zero_set.save(args.output)
+    with outputs.writing() as stage:
+        zero_set.save(stage(args.output))
     what = (f"{len(zero_set.vertices)} vertices, {len(zero_set.faces)} faces" if zero_set.dim == 3
             else f"{len(zero_set.curves)} curves")
     print(f"{args.output}: degree {poly.degree}, {what}, {zero_set.n_components} component(s), "

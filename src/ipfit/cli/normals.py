@@ -6,7 +6,7 @@ import argparse
 import time
 from pathlib import Path
 
-from ._common import positive_int
+from ._common import Outputs, positive_int
 
 NAME = "normals"
 HELP = "write a point file's normals (or estimated ones) to a PLY/OBJ/OFF/CSV/XYZ/NPY file"
@@ -70,12 +70,7 @@ def run(args: argparse.Namespace) -> int:
     from ..normals import DEFAULT_K, estimate_normals, normal_agreement
 
     out = Path(args.output)
-    if out.suffix.lower() not in io.WRITE_FORMATS:
-        raise InvalidInputError(f"{out}: cannot write '{out.suffix or out.name}' files. "
-                                f"Use one of: {', '.join(io.WRITE_FORMATS)}.")
-    if str(out.parent) and not out.parent.is_dir():
-        raise InvalidInputError(f"{out}: the folder {out.parent} does not exist. "
-                                "Create it first or choose another path.")
+    outputs = Outputs([out], inputs=[args.input], suffixes=tuple(io.WRITE_FORMATS))
     points, reference, source, label, faces = _load(args.input)
     n, dim = points.shape
     print(f"{label}: {n:,} points ({dim}D), " + (f"normals from {source}" if reference is not None else "no normals"))
@@ -102,7 +97,8 @@ def run(args: argparse.Namespace) -> int:
             _report_outward(points, faces, reference, normals, source)
         else:
             print("note: --outward only matters with --estimate on a 3D mesh (faces) that has reference normals")
-    io.write_points(out, points, normals, binary=not args.ascii)
+    with outputs.writing() as stage:
+        io.write_points(stage(out), points, normals, binary=not args.ascii)
     print(f"wrote {out} ({n:,} points with normals)")
     return 0
 

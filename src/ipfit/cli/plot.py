@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from ._common import finite_float, nonnegative_float, positive_int
+from ._common import Outputs, finite_float, nonnegative_float, positive_int, recorded_source
 
 NAME = "plot"
 HELP = "draw a result: the zero set of each degree, smoothness vs degree, classic and 3L fits"
@@ -38,11 +38,17 @@ def run(args: argparse.Namespace) -> int:
     from ..plotting import load_result, plot_result, result_view
     from .mesh import load_points
 
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    figure_suffixes = tuple(sorted("." + s for s in FigureCanvasBase.get_supported_filetypes()))
     data = load_result(args.result)
+    outputs = Outputs([args.output], inputs=[args.result, args.points, recorded_source(data)],
+                      suffixes=figure_suffixes)
     view = result_view(data, source=args.result)
     points, _ = load_points(None if args.no_points else args.points, view.polynomial.dim,
                             None if args.no_points else data)
-    fig = plot_result(data, points=points, path=args.output, title=args.title, margin=args.margin,
-                      resolution=args.resolution, view=tuple(args.view), up=args.up, dpi=args.dpi)
+    with outputs.writing() as stage:
+        fig = plot_result(data, points=points, path=stage(args.output), title=args.title, margin=args.margin,
+                          resolution=args.resolution, view=tuple(args.view), up=args.up, dpi=args.dpi)
     print(f"{args.output}: {len(fig.axes)} panel(s)")
     return 0

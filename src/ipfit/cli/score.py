@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from ._common import nonnegative_float, positive_int
+from ._common import Outputs, nonnegative_float, positive_int
 
 NAME = "score"
 HELP = "measure a fit geometrically: recall, precision, F-score, Chamfer, spurious components"
@@ -44,7 +44,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from .._atomic import write_text_atomic
     from ..exceptions import InvalidInputError
     from ..plotting import load_result, result_view
     from ..quality import looks_like_contour, quality
@@ -57,6 +56,8 @@ def run(args: argparse.Namespace) -> int:
         raise InvalidInputError(f"--tau: expected a number > 0, got {args.tau}. Pass a positive tolerance.")
     if args.tau is None and args.tau_fraction <= 0:
         raise InvalidInputError(f"--tau-fraction: expected a number > 0, got {args.tau_fraction}.")
+    # --write updates RESULT.json in place (that is its purpose); the data must never be the target
+    outputs = Outputs([args.result], inputs=[args.input], option="--write") if args.write else None
     data = load_result(args.result)
     view = result_view(data, source=args.result)
     poly = pick_polynomial(view, args.degree, args.result)
@@ -74,5 +75,6 @@ def run(args: argparse.Namespace) -> int:
         print(q)
     if args.write:
         data["quality"] = q.to_dict()  # a new key at the end, or the old one updated in place
-        write_text_atomic(args.result, json.dumps(data, indent=1))
+        with outputs.writing() as stage:
+            stage(args.result).write_text(json.dumps(data, indent=1), encoding="utf-8")
     return 0
