@@ -62,7 +62,7 @@ _TYPES = {
     "boolean": _Type("true or false", lambda v: isinstance(v, bool)),
     "integer >= 0": _Type("a whole number >= 0", lambda v: _is_whole(v) and v >= 0),
     "integer >= 1": _Type("a whole number >= 1", lambda v: _is_whole(v) and v >= 1),
-    "number": _Type("a number (null when not finite)", lambda v: _is_number(v)),
+    "number": _Type("a number", lambda v: _is_number(v)),
     "number > 0": _Type("a finite number > 0", lambda v: _is_number(v) and math.isfinite(v) and v > 0),
     "numbers": _Type("a list of finite numbers", lambda v: isinstance(v, list)
                      and all(_is_number(e) and math.isfinite(e) for e in v)),
@@ -75,7 +75,7 @@ _TYPES = {
                         isinstance(r, list) and len(r) == 2 and all(_is_number(e) and math.isfinite(e) for e in r)
                         and r[0] <= r[1] for r in v)),
     '"ipfit"': _Type(f'the string "{FORMAT_NAME}"', lambda v: v == FORMAT_NAME),
-    "version": _Type(f"a whole number from 1 to {FORMAT_VERSION} (this ipfit reads up to {FORMAT_VERSION})",
+    "version": _Type(f"a whole number from 1 to {FORMAT_VERSION} (the newest format this ipfit reads)",
                      lambda v: _is_int(v) and 1 <= v <= FORMAT_VERSION),
     "2 or 3": _Type("2 or 3", lambda v: _is_int(v) and v in (2, 3)),
 }
@@ -128,7 +128,7 @@ SCHEMA: tuple[Key, ...] = (
     *_normalization("normalization", "f is evaluated at (x − center) / scale; absent means center 0, scale 1"),
     _k("method", "string", "the fit that produced the polynomial"),
     _k("measures", "object", "the paper's measures on the fitting data"),
-    _k("measures.dissimilarity", "number", "mean |f| (paper, Eq. 9)"),
+    _k("measures.dissimilarity", "number", "mean absolute value of f on the data (paper, Eq. 9)"),
     _k("measures.smoothness", "number", "mean agreement of ∇f with the normals (Eq. 10)"),
     _k("measures.distance", "number", "dissimilarity + delta (1 − smoothness)"),
     _k("measures.delta", "number", "the delta used"),
@@ -346,5 +346,6 @@ def schema_markdown() -> str:
         required = "yes" if key.required else ""
         if key.required and "." in key.path:
             required = "yes, when its parent is present"
-        lines.append(f"| `{key.path}` | {_TYPES[key.type].text} | {required} | {key.meaning} |")
+        cells = (f"`{key.path}`", _TYPES[key.type].text, required, key.meaning)
+        lines.append("| " + " | ".join(c.replace("|", "\\|") for c in cells) + " |")
     return "\n".join(lines) + "\n"
