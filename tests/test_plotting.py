@@ -320,3 +320,22 @@ def test_figures_for_every_bundled_dataset(tmp_path):
     for name in bundled.dataset_names():
         png = out / f"{name}.png"
         assert png.exists() and nonblank(png) > 0, name
+
+
+def test_result_without_per_degree_coefficients_shows_the_final_fit(ellipse_result):
+    from ipfit.plotting import plot_result
+
+    shape, result = ellipse_result
+    bare = dict(result, degrees=[{k: v for k, v in d.items() if k != "coefficients"} for d in result["degrees"]],
+                comparisons={})
+    fig = plot_result(bare, shape.points)
+    titles = [ax.get_title() for ax in fig.axes]
+    assert len(titles) == 2 and titles[0].startswith("(a) degree 2 (selected)") and "smoothness" in titles[1]
+
+
+def test_interrupted_run_is_not_called_fixed(ellipse_result):
+    from ipfit.plotting import plot_result
+
+    shape, result = ellipse_result
+    stopped = dict(result, degrees=result["degrees"][:1], comparisons={}, adaptive={"reason": "interrupted"})
+    assert plot_result(stopped, shape.points).axes[0].get_title().startswith("degree 2 (interrupted)")

@@ -389,24 +389,27 @@ def _panels(view: ResultView) -> list[tuple[str, str, Any]]:
     """(title, kind, payload) of each panel of a result's figure."""
     panels: list[tuple[str, str, Any]] = []
     fitted = [d for d in view.degrees if d.polynomial is not None]
-    if view.fixed_degree:
+    if fitted and not view.fixed_degree:
+        for d in fitted:
+            mark = " (selected)" if view.selected_degree == d.degree else ""
+            method = _method_label(d.entry.get("method"))
+            panels.append((f"degree {d.degree}{mark}" + (f"\n{method}" if method else ""), "fit", d.polynomial))
+    else:  # one polynomial to show: title it with its measures
         entry = fitted[0].entry if fitted else {}
         poly = fitted[0].polynomial if fitted else view.polynomial
         method = _method_label(entry.get("method") or poly.method or view.polynomial.method)
         measures = {**(view.data.get("measures") or {}), **entry}
         stats = ", ".join(f"{name} {text}" for name in ("smoothness", "distance")
                           if (text := _number(measures.get(name))) is not None)
-        title = f"degree {poly.degree}" + (" (fixed)" if view.degrees else "") + (f", {method}" if method else "") + (f"\n{stats}" if stats else "")
+        stopped = (view.data.get("adaptive") or {}).get("reason") in ("interrupted", "incomplete")
+        mark = ("" if not view.degrees else " (interrupted)" if stopped else " (fixed)" if view.fixed_degree
+                else " (selected)")
+        title = f"degree {poly.degree}{mark}" + (f", {method}" if method else "") + (f"\n{stats}" if stats else "")
         panels.append((title, "fit", poly))
-    else:
-        for d in fitted:
-            mark = " (selected)" if view.selected_degree == d.degree else ""
-            method = _method_label(d.entry.get("method"))
-            panels.append((f"degree {d.degree}{mark}" + (f"\n{method}" if method else ""), "fit", d.polynomial))
-        smooth = [(d.degree, d.entry.get("smoothness")) for d in view.degrees]
-        smooth = [(g, s) for g, s in smooth if isinstance(s, (int, float)) and math.isfinite(s)]
-        if len(smooth) > 1:
-            panels.append(("smoothness vs degree", "smoothness", smooth))
+    smooth = [(d.degree, d.entry.get("smoothness")) for d in view.degrees]
+    smooth = [(g, s) for g, s in smooth if isinstance(s, (int, float)) and math.isfinite(s)]
+    if len(smooth) > 1:
+        panels.append(("smoothness vs degree", "smoothness", smooth))
     for name, poly in view.comparisons.items():
         panels.append((f"{_method_label(name)}, degree {poly.degree}", "fit", poly))
     return panels
