@@ -30,6 +30,7 @@ __all__ = ["FORMAT_NAME", "FORMAT_VERSION", "Key", "SCHEMA", "validate_result", 
 FORMAT_NAME = "ipfit"
 FORMAT_VERSION = 1
 _FIX = "Regenerate the result with ipfit, or repair that key."
+_RELATIVE_SCALE = 1e-12
 
 
 # -- value types: (text for the docs and the messages, test) ----------------------------------
@@ -236,9 +237,16 @@ def _check_polynomial(coefficients: list, dim: int, degree: int, where: str, sou
                     "An all-zero polynomial has no zero set; regenerate the result with ipfit.")
 
 
-def _check_center(norm: Mapping | None, dim: int, where: str, source: str) -> None:
-    if norm is not None and len(norm["center"]) != dim:
+def _check_normalization(norm: Mapping | None, dim: int, where: str, source: str) -> None:
+    if norm is None:
+        return
+    if len(norm["center"]) != dim:
         raise _fail(source, f"{where}.center", f"{dim} values, one per axis", f"{len(norm['center'])} values")
+    # Below this, (x − center) / scale has no significant digits left: every box collapses.
+    smallest = _RELATIVE_SCALE * max(1.0, *(abs(c) for c in norm["center"]))
+    if norm["scale"] < smallest:
+        raise _fail(source, f"{where}.scale", f"at least {smallest:.3g} ({_RELATIVE_SCALE:g} × the centre's size, "
+                    "below which coordinates lose every digit)", _got(norm["scale"]))
 
 
 def validate_result(data: Any, source: str = "result") -> dict:
@@ -278,7 +286,7 @@ def validate_result(data: Any, source: str = "result") -> dict:
         raise _fail(source, "coefficients", f"{len(rows)} values, one per exponent row",
                     f"{len(data['coefficients'])} values")
     _check_polynomial(data["coefficients"], dim, degree, "coefficients", source)
-    _check_center(data.get("normalization"), dim, "normalization", source)
+    _check_normalization(data.get("normalization"), dim, "normalization", source)
     if data.get("bounds") is not None and len(data["bounds"]) != dim:
         raise _fail(source, "bounds", f"{dim} [low, high] pairs, one per axis", f"{len(data['bounds'])} pairs")
     tried = []
@@ -287,7 +295,7 @@ def validate_result(data: Any, source: str = "result") -> dict:
         tried.append(g)
         if entry.get("coefficients") is not None:
             _check_polynomial(entry["coefficients"], dim, g, f"degrees[{i}].coefficients", source)
-        _check_center(entry.get("normalization"), dim, f"degrees[{i}].normalization", source)
+        _check_normalization(entry.get("normalization"), dim, f"degrees[{i}].normalization", source)
     selected = data.get("selected_degree")
     if selected is not None and tried and selected not in tried:
         raise _fail(source, "selected_degree", "one of the degrees tried (" + ", ".join(map(str, tried)) + ")",
@@ -304,7 +312,7 @@ def validate_result(data: Any, source: str = "result") -> dict:
             raise _fail(source, f"{where}.degree", f"{g}, the degree of its {len(coef)} coefficients",
                         _got(entry["degree"]))
         _check_polynomial(coef, dim, g, f"{where}.coefficients", source)
-        _check_center(entry.get("normalization"), dim, f"{where}.normalization", source)
+        _check_normalization(entry.get("normalization"), dim, f"{where}.normalization", source)
     return data
 
 
