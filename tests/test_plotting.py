@@ -247,11 +247,13 @@ def test_spurious_surface_pieces_are_red_and_see_through():
     flags = spurious_components(zs, right)
     assert flags.tolist().count(True) == 1
     ax = plot_surface(None, zero_set=zs, spurious=flags)
-    (mesh,) = [c for c in ax.collections if isinstance(c, Poly3DCollection)]
-    colours = mesh.get_facecolor()
+    shape, ghost = [c for c in ax.collections if isinstance(c, Poly3DCollection)]
     left = flags[zs.component_labels]
-    assert np.all(colours[left, 3] == SPURIOUS_ALPHA) and np.all(colours[~left, 3] == 1.0)
-    assert np.all(colours[left, 0] > colours[left, 2]) and np.all(colours[~left, 2] > colours[~left, 0])  # red, blue
+    assert len(ghost.get_facecolor()) == left.sum() and len(shape.get_facecolor()) == (~left).sum()
+    assert ghost.get_zorder() > shape.get_zorder()  # drawn on top: visible even inside the shape
+    ghost_rgba, shape_rgba = ghost.get_facecolor(), shape.get_facecolor()
+    assert np.all(ghost_rgba[:, 3] == SPURIOUS_ALPHA) and np.all(shape_rgba[:, 3] == 1.0)
+    assert np.all(ghost_rgba[:, 0] > ghost_rgba[:, 2]) and np.all(shape_rgba[:, 2] > shape_rgba[:, 0])  # red, blue
     with pytest.raises(InvalidInputError, match="spurious: expected 2 flags"):
         plot_surface(None, zero_set=zs, spurious=[True], ax=ax)
     close(ax)

@@ -44,7 +44,7 @@ __all__ = [
 CURVE_COLOR = "#1f5fbf"
 SURFACE_COLOR = (0.55, 0.70, 0.92)
 SPURIOUS_COLOR = "#d62728"
-SPURIOUS_ALPHA = 0.3  # 3D: spurious pieces are see-through
+SPURIOUS_ALPHA = 0.25  # 3D: spurious pieces are see-through
 POINT_COLOR = "0.45"
 POINT_COLOR_3D = "#303030"
 METHOD_TITLES = {"lstsq": "classic linear", "3l": "3L", "ridge": "3L + ridge", "taubin": "Taubin",
@@ -252,8 +252,6 @@ def plot_curve(poly: ImplicitPolynomial | None, points: ArrayLike | None = None,
 
 
 def _shaded_colors(vertices: NDArray, faces: NDArray, color, light=(0.35, -0.45, 0.82)) -> NDArray:
-    from matplotlib.colors import to_rgba_array
-
     tri = vertices[faces]
     normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     length = np.linalg.norm(normals, axis=1, keepdims=True)
@@ -261,8 +259,7 @@ def _shaded_colors(vertices: NDArray, faces: NDArray, color, light=(0.35, -0.45,
     direction = np.asarray(light, dtype=float) / np.linalg.norm(light)
     # Two-sided Lambert shading: the mesh's orientation does not matter for the picture.
     intensity = 0.3 + 0.7 * np.abs(normals @ direction)
-    base = to_rgba_array(color)[:, :3]  # one colour, or one per face
-    rgb = np.clip(base * intensity[:, None], 0, 1)
+    rgb = np.clip(np.asarray(color, dtype=float)[None, :3] * intensity[:, None], 0, 1)
     return np.column_stack([rgb, np.ones(len(rgb))])
 
 
@@ -317,19 +314,21 @@ def plot_surface(poly: ImplicitPolynomial | None, points: ArrayLike | None = Non
             keep = slice(None, None, math.ceil(len(faces) / max_faces))
             faces, labels = faces[keep], labels[keep]
         flagged = flags[labels]
-        colors = _shaded_colors(zs.vertices, faces, np.where(flagged[:, None], to_rgba(spurious_color)[:3],
-                                                             to_rgba(color)[:3]))
-        colors[flagged, 3] = SPURIOUS_ALPHA  # a spurious shell around the shape must not hide it
-        # Without antialiasing, neighbouring faces leave no hairline seams between them.
-        collection = Poly3DCollection(zs.vertices[faces], facecolors=colors, edgecolors="none", linewidths=0,
-                                      antialiased=False, zorder=1)
-        ax.add_collection3d(collection)
+        # Spurious pieces go over the shape, see-through (one inside it still shows, one around it hides
+        # nothing), and the points over both.
+        for part, rgb, alpha, zorder in ((~flagged, color, 1.0, 1), (flagged, spurious_color, SPURIOUS_ALPHA, 2)):
+            if part.any():
+                colors = _shaded_colors(zs.vertices, faces[part], to_rgba(rgb)[:3])
+                colors[:, 3] = alpha
+                # Without antialiasing, neighbouring faces leave no hairline seams between them.
+                ax.add_collection3d(Poly3DCollection(zs.vertices[faces[part]], facecolors=colors, edgecolors="none",
+                                                     linewidths=0, antialiased=False, zorder=zorder))
     if show_points and pts is not None:
         surface = poly if poly is not None else zs.polynomial
         if surface is not None:
             pts = pts[_facing_camera(pts, surface, view, up)]
         if len(pts):
-            plot_points(pts, ax, zorder=2)
+            plot_points(pts, ax, zorder=3)
     _camera(ax, view, up)
     _frame(ax, zs.bounds, 3, axis_off)
     return ax
