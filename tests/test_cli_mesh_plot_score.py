@@ -1,8 +1,9 @@
-"""``ipfit mesh``, ``ipfit plot`` and ``ipfit score`` end to end (in-process)."""
+"""``ipfit mesh``, ``ipfit plot`` and ``ipfit score`` end to end (in-process, real files)."""
 
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -11,24 +12,36 @@ from ipfit.cli import main
 from ipfit.datasets import synthetic
 
 from test_plotting import adaptive_result, nonblank
+from test_results import CORRUPTIONS, corrupted, fitted  # noqa: F401  fitted: a real fit_adaptive result
 
 
-@pytest.fixture
-def inputs(monkeypatch):
-    """Serve INPUT names from memory, so these tests do not depend on the file readers."""
-    from ipfit.cli import _common
+def write_points(path: Path, points: np.ndarray) -> str:
+    header = "x,y,z" if points.shape[1] == 3 else "x,y"
+    np.savetxt(path, points, delimiter=",", header=header, comments="")
+    return str(path)
 
-    table = {}
-    original = _common.load_input
 
-    def fake(spec):
-        if spec in table:
-            points, faces = table[spec]
-            return _common.Input(points, None, spec, faces)
-        return original(spec)
+def image(path: Path) -> np.ndarray:
+    from PIL import Image
 
-    monkeypatch.setattr(_common, "load_input", fake)
-    return table
+    return np.asarray(Image.open(path).convert("L"), dtype=float) / 255
+
+
+def run(capsys, argv) -> tuple[int, str, str]:
+    try:
+        code = main([str(a) for a in argv])
+    except SystemExit as exc:  # argparse's own errors
+        code = exc.code
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def assert_one_error_line(code: int, err: str, command: str, *phrases: str) -> None:
+    assert code == 2, err
+    assert err.count("\n") == 1 and err.startswith(f"ipfit {command}: error: "), err
+    assert "Traceback" not in err
+    for phrase in phrases:
+        assert phrase in err, err
 
 
 @pytest.fixture
@@ -54,132 +67,283 @@ def test_mesh_3d(torus_json, tmp_path, capsys, suffix):
 
     _, path = torus_json
     out = tmp_path / f"t{suffix}"
-    assert main(["mesh", str(path), "-o", str(out), "--resolution", "40"]) == 0
+    code, stdout, _ = run(capsys, ["mesh", path, "-o", out, "--resolution", "40"])
+    assert code == 0
     mesh = trimesh.load(out, force="mesh")
     assert len(mesh.faces) > 100
-    line = capsys.readouterr().out
-    assert "1 component(s)" in line and "closed" in line
+    assert "1 component(s)" in stdout and "closed" in stdout
 
 
-def test_mesh_selected_degree_and_points(torus_json, tmp_path, inputs, capsys):
+def test_mesh_selected_degree_and_points(torus_json, tmp_path, capsys):
     import trimesh
 
     shape, path = torus_json
-    inputs["torus-data"] = (shape.points, None)
+    data = write_points(tmp_path / "torus.csv", shape.points)
     out = tmp_path / "d2.ply"
-    assert main(["mesh", str(path), "-o", str(out), "--degree", "2", "--points", "torus-data",
-                 "--resolution", "40"]) == 0
-    assert "degree 2" in capsys.readouterr().out
+    code, stdout, _ = run(capsys, ["mesh", path, "-o", out, "--degree", "2", "--points", data, "--resolution", "40"])
+    assert code == 0 and "degree 2" in stdout
     radii = np.linalg.norm(trimesh.load(out, force="mesh").vertices[:, :2], axis=1)
     assert radii.max() == pytest.approx(1.4, abs=0.1)  # the degree-2 ellipsoid, not the torus
 
 
-def test_mesh_2d_svg_csv(circle_json, tmp_path):
+def test_mesh_2d_svg_csv_agree_in_data_coordinates(circle_json, tmp_path):
+    import xml.etree.ElementTree as ET
+
     _, path = circle_json
     assert main(["mesh", str(path), "-o", str(tmp_path / "c.svg")]) == 0
     assert main(["mesh", str(path), "-o", str(tmp_path / "c.csv")]) == 0
-    assert (tmp_path / "c.svg").read_text().count("<path") == 1
     rows = np.loadtxt(tmp_path / "c.csv", delimiter=",", comments="#", skiprows=3)
     np.testing.assert_allclose(np.linalg.norm(rows[:, 1:], axis=1), 1.0, atol=0.01)
+    root = ET.parse(tmp_path / "c.svg").getroot()
+    ns = "{http://www.w3.org/2000/svg}"
+    assert "data coordinates" in root.find(f"{ns}desc").text
+    group = root.find(f"{ns}g")
+    (_, _, _, _, _, shift) = map(float, group.get("transform")[len("matrix("):-1].split())
+    (path_el,) = group.findall(f"{ns}path")
+    numbers = [float(t) for t in path_el.get("d").replace("M", " ").replace("L", " ").replace("Z", " ").split()]
+    svg = np.reshape(numbers, (-1, 2))
+    # the SVG's numbers are the CSV's (to 6 significant digits), without the closing repeat
+    np.testing.assert_allclose(svg, rows[:-1, 1:], rtol=1e-5, atol=1e-6)
+    viewbox = [float(v) for v in root.get("viewBox").split()]
+    assert shift == pytest.approx(2 * viewbox[1] + viewbox[3])  # y ↦ (y0 + y1) − y inside the box
 
 
-@pytest.mark.parametrize("argv, match", [
-    (["mesh", "{circle}", "-o", "{tmp}/c.ply"], "expected an extension in .svg, .csv"),
-    (["mesh", "{tmp}/missing.json", "-o", "{tmp}/c.svg"], "no such file"),
-    (["mesh", "{circle}", "-o", "{tmp}/c.svg", "--degree", "6"], "--degree"),
-    (["mesh", "{circle}", "-o", "{tmp}/nofolder/c.svg"], "does not exist"),
+@pytest.mark.parametrize("argv, phrases", [
+    (["mesh", "{circle}", "-o", "{tmp}/c.ply"], ["-o/--output: expected a file name ending in .svg or .csv",
+                                                "got '.ply'"]),
+    (["mesh", "{circle}", "-o", "{tmp}/c.xyz"], ["ending in .svg or .csv", "got '.xyz'"]),
+    (["mesh", "{circle}", "-o", "{tmp}/c"], ["with no extension"]),
+    (["mesh", "{tmp}/missing.json", "-o", "{tmp}/c.svg"], ["no such file"]),
+    (["mesh", "{circle}", "-o", "{tmp}/c.svg", "--degree", "6"], ["--degree: expected a degree"]),
+    (["mesh", "{circle}", "-o", "{tmp}/nofolder/c.svg"], ["does not exist"]),
 ])
-def test_mesh_errors_one_line(circle_json, tmp_path, capsys, argv, match):
+def test_mesh_errors_one_line(circle_json, tmp_path, capsys, argv, phrases):
     _, path = circle_json
-    argv = [a.format(circle=path, tmp=tmp_path) for a in argv]
-    assert main(argv) == 2
-    err = capsys.readouterr().err
-    assert match in err and err.count("\n") == 1 and err.startswith("ipfit mesh: error:")
+    code, _, err = run(capsys, [a.format(circle=path, tmp=tmp_path) for a in argv])
+    assert_one_error_line(code, err, "mesh", *phrases)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["circle.json"]
 
 
-def test_plot(torus_json, circle_json, tmp_path, inputs, capsys):
+def test_mesh_3d_refuses_curve_suffix_before_work(torus_json, tmp_path, capsys):
+    _, path = torus_json
+    code, _, err = run(capsys, ["mesh", path, "-o", tmp_path / "t.svg"])
+    assert_one_error_line(code, err, "mesh", "ending in .ply or .obj or .stl for a 3D result")
+
+
+# -- corrupted results: every reader refuses them with one line ------------------------------
+
+@pytest.mark.parametrize("command", ["mesh", "score", "plot"])
+@pytest.mark.parametrize("case", sorted(CORRUPTIONS))
+def test_corrupted_result_one_line_exit_2(fitted, case, command, tmp_path, capsys):
+    _, key, phrase = CORRUPTIONS[case]
+    path = tmp_path / "bad.json"
+    path.write_text(json.dumps(corrupted(fitted, case)))
+    data = write_points(tmp_path / "data.csv", synthetic.ellipse(120).points)
+    argv = {"mesh": ["mesh", path, "-o", tmp_path / "z.svg"],
+            "score": ["score", path, "--points", data],
+            "plot": ["plot", path, "-o", tmp_path / "p.png"]}[command]
+    code, out, err = run(capsys, argv)
+    assert_one_error_line(code, err, command, f"{path}: {key}: ", phrase)
+    assert out == ""
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.json", "data.csv"]
+
+
+# -- plot -----------------------------------------------------------------------------------
+
+def test_plot(torus_json, circle_json, tmp_path, capsys):
     shape, path = torus_json
-    inputs["torus-data"] = (shape.points, None)
+    data = write_points(tmp_path / "torus.csv", shape.points)
     out = tmp_path / "t.png"
-    assert main(["plot", str(path), "--points", "torus-data", "-o", str(out), "--resolution", "28"]) == 0
+    code, stdout, err = run(capsys, ["plot", path, "--points", data, "-o", out, "--resolution", "28"])
+    assert code == 0 and err == ""
     assert nonblank(out) > 0
-    assert "6 panel(s)" in capsys.readouterr().out
+    assert "5 panel(s)" in stdout  # 2 degrees, smoothness, 2 comparisons: the points are on the surfaces
     _, cpath = circle_json
-    assert main(["plot", str(cpath), "-o", str(tmp_path / "c.png")]) == 0
+    code, stdout, err = run(capsys, ["plot", cpath, "-o", tmp_path / "c.png"])
+    assert code == 0 and err == ""  # a plain polynomial records no data: nothing to warn about
     assert nonblank(tmp_path / "c.png") > 0
 
 
-def test_plot_uses_recorded_input(circle_json, tmp_path, inputs):
-    shape, path = circle_json
+@pytest.mark.parametrize("output, phrase", [
+    ("p.xyz", "got '.xyz'"),
+    ("p", "with no extension"),
+])
+def test_plot_refuses_unknown_suffix(circle_json, tmp_path, capsys, output, phrase):
+    _, path = circle_json
+    code, _, err = run(capsys, ["plot", path, "-o", tmp_path / output])
+    assert_one_error_line(code, err, "plot", "-o/--output: expected a figure file name ending in .png, .pdf, .svg",
+                          phrase)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["circle.json"]
+
+
+def test_plot_bounds_the_dpi(torus_json, tmp_path, capsys):
+    _, path = torus_json
+    code, _, err = run(capsys, ["plot", path, "-o", tmp_path / "t.png", "--dpi", "100000"])
+    assert code == 2 and err.count("\n") == 1 and "--dpi" in err and "from 1 to 2400" in err
+    # within the option's range, but too many pixels for a five-panel figure
+    code, _, err = run(capsys, ["plot", path, "-o", tmp_path / "t.png", "--dpi", "2400"])
+    assert_one_error_line(code, err, "plot", "dpi: expected at most", "million pixels", "got 2400")
+    assert not (tmp_path / "t.png").exists()
+
+
+def _with_input(path: Path, record: dict) -> None:
     data = json.loads(path.read_text())
-    data["input"] = {"source": "circle-data", "n_points": 100}
+    data["input"] = record
     path.write_text(json.dumps(data))
-    inputs["circle-data"] = (shape.points, None)
-    assert main(["plot", str(path), "-o", str(tmp_path / "c.png")]) == 0
-    data["input"]["source"] = "gone"  # an unreadable recorded input only drops the points
-    path.write_text(json.dumps(data))
-    assert main(["plot", str(path), "-o", str(tmp_path / "c2.png")]) == 0
 
 
-def test_score_prints_and_writes(torus_json, tmp_path, inputs, capsys):
+def test_plot_finds_the_recorded_data_by_absolute_path(circle_json, tmp_path, capsys, monkeypatch):
+    shape, path = circle_json
+    data = write_points(tmp_path / "circle.csv", shape.points)
+    _with_input(path, {"source": "circle.csv", "path": str(Path(data).resolve()), "n_points": 100})
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)  # "circle.csv" means nothing here; the absolute path does
+    code, _, err = run(capsys, ["plot", path, "-o", tmp_path / "c.png"])
+    assert code == 0 and err == ""
+    code, _, err = run(capsys, ["plot", path, "--no-points", "-o", tmp_path / "bare.png"])
+    assert code == 0 and err == ""
+    with_points = image(tmp_path / "c.png")
+    bare = image(tmp_path / "bare.png")
+    assert with_points.shape == bare.shape and np.sum(with_points < bare - 0.1) > 50  # the grey points
+
+
+def test_plot_finds_a_bundled_dataset_by_name(tmp_path, capsys):
+    from ipfit import load_dataset
+
+    cloud = load_dataset("airplane")
+    poly = synthetic.ellipse(a=1.0, b=1.0).polynomial
+    result = poly.to_dict()
+    result["normalization"] = {"center": np.mean(cloud.points, axis=0).tolist(),
+                               "scale": float(np.ptp(cloud.points, axis=0).max() / 2)}
+    result["input"] = {"source": "airplane", "n_points": len(cloud.points)}
+    path = tmp_path / "a.json"
+    path.write_text(json.dumps(result))
+    code, _, err = run(capsys, ["plot", path, "-o", tmp_path / "a.png", "--resolution", "60"])
+    assert code == 0 and err == ""
+    code, out, err = run(capsys, ["score", path, "--json", "--resolution", "60"])
+    assert code == 0 and json.loads(out)["tau"] > 0
+
+
+@pytest.mark.parametrize("record, phrase", [
+    ({"source": "gone.csv", "path": "/nowhere/gone.csv", "n_points": 100}, "/nowhere/gone.csv does not exist"),
+    ({"source": "gone.csv", "n_points": 100}, "gone.csv does not exist (here)"),
+    ({"n_points": 100}, "does not record its data"),
+])
+def test_plot_warns_once_when_the_data_cannot_be_found(circle_json, tmp_path, capsys, monkeypatch, record, phrase):
+    _, path = circle_json
+    _with_input(path, record)
+    monkeypatch.chdir(tmp_path)
+    code, _, err = run(capsys, ["plot", path, "-o", tmp_path / "c.png"])
+    assert code == 0 and nonblank(tmp_path / "c.png") > 0
+    assert err.count("\n") == 1 and err.startswith("ipfit plot: warning: ") and phrase in err
+    assert "without the points" in err and "--points DATA" in err
+    code, _, err = run(capsys, ["plot", path, "--no-points", "-o", tmp_path / "c.png"])
+    assert code == 0 and err == ""  # asked not to look
+
+
+def test_plot_warns_when_the_recorded_file_is_other_data(circle_json, tmp_path, capsys):
+    shape, path = circle_json
+    data = write_points(tmp_path / "c.csv", shape.points[:50])  # the file changed since the fit
+    _with_input(path, {"source": data, "path": data, "n_points": 100})
+    code, _, err = run(capsys, ["plot", path, "-o", tmp_path / "c.png"])
+    assert code == 0 and err.count("\n") == 1 and "has 50 2D points, the result was fitted to 100" in err
+
+
+def test_mesh_frames_by_bounds_without_looking_for_data(torus_json, tmp_path, capsys):
+    import trimesh
+
+    _, path = torus_json
+    data = json.loads(path.read_text())
+    data["bounds"] = [[-1.4, 1.4], [-1.4, 1.4], [-0.4, 0.4]]
+    data["input"] = {"source": "gone.csv", "path": "/nowhere/gone.csv"}
+    path.write_text(json.dumps(data))
+    code, _, err = run(capsys, ["mesh", path, "-o", tmp_path / "t.ply", "--resolution", "40", "--margin", "0.1"])
+    assert code == 0 and err == ""
+    vertices = trimesh.load(tmp_path / "t.ply", force="mesh").vertices
+    assert np.abs(vertices[:, 2]).max() == pytest.approx(0.4, abs=0.05)  # the torus, inside the recorded box
+    del data["bounds"]
+    path.write_text(json.dumps(data))
+    code, _, err = run(capsys, ["mesh", path, "-o", tmp_path / "t.ply", "--resolution", "40"])
+    assert code == 0 and err.count("\n") == 1 and "framing the box by the result's normalisation" in err
+
+
+# -- score ----------------------------------------------------------------------------------
+
+def test_score_prints_and_writes(torus_json, tmp_path, capsys):
     shape, path = torus_json
-    inputs["torus-data"] = (shape.points, None)
+    data = write_points(tmp_path / "torus.csv", shape.points)
     before = json.loads(path.read_text())
-    assert main(["score", str(path), "torus-data", "--json", "--resolution", "48"]) == 0
-    q = json.loads(capsys.readouterr().out)
+    code, out, _ = run(capsys, ["score", path, "--points", data, "--json", "--resolution", "48"])
+    assert code == 0
+    q = json.loads(out)
     assert q["recall"] == 1.0 and q["n_spurious"] == 0 and q["closed"] is True
     assert json.loads(path.read_text()) == before  # without --write the result is untouched
-    assert main(["score", str(path), "torus-data", "--write", "--resolution", "48"]) == 0
-    assert "f_score" in capsys.readouterr().out
+    code, out, _ = run(capsys, ["score", path, "--points", data, "--write", "--resolution", "48"])
+    assert code == 0 and "f_score" in out
     after = json.loads(path.read_text())
     assert list(after)[: len(before)] == list(before)  # existing keys kept, in order
     assert {k: after[k] for k in before} == before
     assert after["quality"]["recall"] == 1.0
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["torus.json"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["torus.csv", "torus.json"]
 
 
-def test_score_degree_tau_and_contour(torus_json, circle_json, inputs, capsys):
+def test_score_positional_data_is_a_deprecated_alias(circle_json, tmp_path, capsys):
+    shape, path = circle_json
+    data = write_points(tmp_path / "c.csv", shape.points)
+    code, new, err = run(capsys, ["score", path, "--points", data, "--json"])
+    assert code == 0 and err == ""
+    code, old, err = run(capsys, ["score", path, data, "--json"])
+    assert code == 0 and json.loads(old) == json.loads(new)
+    assert err.count("\n") == 1 and "deprecated" in err and f"--points {data}" in err
+    code, _, err = run(capsys, ["score", path, data, "--points", data])
+    assert_one_error_line(code, err, "score", "--points: given twice")
+
+
+def test_score_finds_recorded_data_or_says_how_to_pass_it(circle_json, tmp_path, capsys):
+    shape, path = circle_json
+    data = write_points(tmp_path / "c.csv", shape.points)
+    _with_input(path, {"source": "c.csv", "path": data, "n_points": 100})
+    code, out, err = run(capsys, ["score", path])
+    assert code == 0 and err == "" and "against c.csv" in out
+    _with_input(path, {"source": "c.csv", "path": str(tmp_path / "moved.csv"), "n_points": 100})
+    code, _, err = run(capsys, ["score", path])
+    assert_one_error_line(code, err, "score", "moved.csv does not exist", "Pass the data with --points DATA")
+
+
+def test_score_degree_tau_and_contour(torus_json, circle_json, tmp_path, capsys):
     shape, path = torus_json
-    inputs["torus-data"] = (shape.points, None)
-    assert main(["score", str(path), "torus-data", "--degree", "2", "--json", "--resolution", "32"]) == 0
-    assert json.loads(capsys.readouterr().out)["f_score"] < 0.9  # the ellipsoid misses the hole
+    data = write_points(tmp_path / "torus.csv", shape.points)
+    code, out, _ = run(capsys, ["score", path, "--points", data, "--degree", "2", "--json", "--resolution", "32"])
+    assert code == 0 and json.loads(out)["f_score"] < 0.9  # the ellipsoid misses the hole
     cshape, cpath = circle_json
-    inputs["circle-sparse"] = (cshape.points[::4], None)  # 25 ordered points
-    assert main(["score", str(cpath), "circle-sparse", "--json"]) == 0
-    q = json.loads(capsys.readouterr().out)
+    sparse = write_points(tmp_path / "sparse.csv", cshape.points[::4])  # 25 ordered points
+    code, out, _ = run(capsys, ["score", cpath, "--points", sparse, "--json"])
+    q = json.loads(out)
     assert q["reference"] == "contour" and q["f_score"] == 1.0
-    assert main(["score", str(cpath), "circle-sparse", "--json", "--contour", "no", "--tau", "0.01"]) == 0
-    q = json.loads(capsys.readouterr().out)
+    code, out, _ = run(capsys, ["score", cpath, "--points", sparse, "--json", "--contour", "no", "--tau", "0.01"])
+    q = json.loads(out)
     assert q["reference"] == "points" and q["tau"] == 0.01 and q["precision"] < 0.5
 
 
-def test_score_with_mesh_faces(tmp_path, inputs, capsys):
+def test_score_with_mesh_faces(tmp_path, capsys):
     import trimesh
 
-    mesh = trimesh.creation.icosphere(subdivisions=2)
-    inputs["ico"] = (np.asarray(mesh.vertices), np.asarray(mesh.faces))
+    trimesh.creation.icosphere(subdivisions=2).export(tmp_path / "ico.ply")
     synthetic.sphere().polynomial.save(tmp_path / "s.json")
-    assert main(["score", str(tmp_path / "s.json"), "ico", "--json", "--resolution", "48"]) == 0
-    q = json.loads(capsys.readouterr().out)
-    assert q["reference"] == "faces" and q["f_score"] == 1.0
+    code, out, _ = run(capsys, ["score", tmp_path / "s.json", "--points", tmp_path / "ico.ply", "--json",
+                                "--resolution", "48"])
+    q = json.loads(out)
+    assert code == 0 and q["reference"] == "faces" and q["f_score"] == 1.0
 
 
-def test_score_errors(torus_json, circle_json, inputs, capsys):
+def test_score_errors(torus_json, tmp_path, capsys):
     shape, path = torus_json
-    inputs["flat"] = (synthetic.circle(30).points, None)
-    assert main(["score", str(path), "flat"]) == 2
-    assert "3D points" in capsys.readouterr().err
-    inputs["torus-data"] = (shape.points, None)
-    assert main(["score", str(path), "torus-data", "--write", "--degree", "2"]) == 2
-    assert main(["score", str(path), "torus-data", "--tau", "0"]) == 2
-    assert capsys.readouterr().err.count("\n") == 2
-
-
-def test_score_reads_a_real_file(tmp_path, capsys):
-    io = pytest.importorskip("ipfit.io")
-    shape = synthetic.circle(100)
-    shape.polynomial.save(tmp_path / "c.json")
-    np.savetxt(tmp_path / "c.csv", shape.points, delimiter=",", header="x,y", comments="")
-    assert io.read_points(tmp_path / "c.csv").points.shape == (100, 2)
-    assert main(["score", str(tmp_path / "c.json"), str(tmp_path / "c.csv"), "--json"]) == 0
-    assert json.loads(capsys.readouterr().out)["f_score"] == 1.0
+    flat = write_points(tmp_path / "flat.csv", synthetic.circle(30).points)
+    code, _, err = run(capsys, ["score", path, "--points", flat])
+    assert_one_error_line(code, err, "score", "--points: expected 3D points")
+    data = write_points(tmp_path / "torus.csv", shape.points)
+    code, _, err = run(capsys, ["score", path, "--points", data, "--write", "--degree", "2"])
+    assert_one_error_line(code, err, "score", "--write")
+    code, _, err = run(capsys, ["score", path, "--points", data, "--tau", "0"])
+    assert_one_error_line(code, err, "score", "--tau")

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ipfit import ReadError, basis
+from ipfit import InvalidInputError, basis
 from ipfit.datasets import synthetic
 
 REPO = Path(__file__).resolve().parents[1]
@@ -120,13 +120,18 @@ def test_plot_result_panels_2d(ellipse_result, tmp_path):
 
 
 def test_plot_result_panels_3d(torus_result, tmp_path):
+    from mpl_toolkits.mplot3d.art3d import Path3DCollection
+
     from ipfit.plotting import plot_result
 
     shape, result = torus_result
     fig = plot_result(result, shape.points, tmp_path / "t.png", resolution=32, title="torus")
     titles = [ax.get_title() for ax in fig.axes]
-    # point cloud + 2 degrees + smoothness + classic + 3L
-    assert len(titles) == 6 and "point cloud" in titles[0] and "(selected)" in titles[2]
+    # 2 degrees + smoothness + classic + 3L; the points are drawn on every surface, not apart
+    assert len(titles) == 5 and "(selected)" in titles[1] and not any("point cloud" in t for t in titles)
+    for ax in (fig.axes[0], fig.axes[1], fig.axes[3], fig.axes[4]):
+        (scatter,) = [c for c in ax.collections if isinstance(c, Path3DCollection)]
+        assert 0.2 * len(shape.points) < len(scatter._offsets3d[0]) < 0.9 * len(shape.points)  # the front only
     assert nonblank(tmp_path / "t.png") > 0
 
 
@@ -136,47 +141,155 @@ def test_plot_result_plain_polynomial_and_path(tmp_path):
     poly = synthetic.sphere().polynomial
     poly.save(tmp_path / "s.json")
     fig = plot_result(tmp_path / "s.json", resolution=24)
-    assert len(fig.axes) == 1
+    assert len(fig.axes) == 1 and fig.axes[0].get_title().startswith("degree 2")
     fig = plot_result(poly, resolution=24, path=tmp_path / "s.png")
     assert nonblank(tmp_path / "s.png") > 0
 
 
-def test_result_view_entries_with_their_own_normalization():
-    from ipfit import ImplicitPolynomial, Normalization
-    from ipfit.plotting import result_view
+def test_fixed_degree_result_is_one_panel_for_that_degree(ellipse_result):
+    from ipfit.plotting import plot_result
 
-    shape = synthetic.circle()
-    result = adaptive_result(shape.polynomial, {2: shape.polynomial}, selected=2)
-    own = Normalization([0.5, 0.0], 2.0)
-    result["comparisons"]["3l"]["normalization"] = own.to_dict()
-    view = result_view(result)
-    assert view.selected == 2 and [d.degree for d in view.degrees] == [2]
-    assert view.comparisons["3l"].normalization.scale == 2.0
-    assert isinstance(view.comparisons["lstsq"], ImplicitPolynomial)
+    shape, result = ellipse_result
+    fixed = dict(result, degrees=result["degrees"][:1], comparisons={})
+    fig = plot_result(fixed, shape.points)
+    (ax,) = fig.axes
+    title = ax.get_title()
+    assert title.startswith("degree 2 (fixed), 3L") and "smoothness 0.840" in title  # the entry's own measures
+    assert ax.name != "3d" and len(ax.lines) == 1  # the curve, no smoothness-vs-degree panel
 
 
-@pytest.mark.parametrize("mutate, match", [
-    (lambda d: d.update(degrees=[{"coefficients": [1.0]}]), "degree"),
-    (lambda d: d.update(degrees=[{"degree": 4, "coefficients": [1.0, 2.0]}]), "degree 4"),
-    (lambda d: d.update(format="other"), "not an ipfit result"),
-])
-def test_result_view_errors(mutate, match):
-    from ipfit.plotting import result_view
+def test_smoothness_axis_plain_labels_and_no_fake_dip():
+    from ipfit.plotting import MIN_SMOOTHNESS_SPAN, plot_smoothness
 
-    data = synthetic.circle().polynomial.to_dict()
-    mutate(data)
-    with pytest.raises(ReadError, match=match):
-        result_view(data)
+    # a straight line's smoothness differs in the 6th decimal between degrees
+    ax = plot_smoothness([2, 4, 6], [0.8960001, 0.8960031, 0.8960012], selected=2)
+    ax.figure.canvas.draw()
+    lo, hi = ax.get_ylim()
+    assert hi - lo >= MIN_SMOOTHNESS_SPAN and lo < 0.8960001 and hi > 0.8960031
+    assert ax.yaxis.get_offset_text().get_text() == ""
+    labels = [float(t.get_text().replace("\u2212", "-")) for t in ax.get_yticklabels()]
+    assert len(labels) >= 3
+    np.testing.assert_allclose(labels, ax.get_yticks(), atol=1e-9)  # each label is its tick's value
+    close(ax)
+    ax = plot_smoothness([2, 4], [0.5, 0.9])  # a real gain keeps its own range
+    assert ax.get_ylim()[1] - ax.get_ylim()[0] == pytest.approx(0.44)
+    close(ax)
 
 
-def test_load_result_errors(tmp_path):
-    from ipfit.plotting import load_result
+def test_points_drawn_over_a_surface_face_the_camera():
+    """Against matplotlib's own camera: the points shown are those on the sphere's near half."""
+    from mpl_toolkits.mplot3d.art3d import Path3DCollection
 
-    with pytest.raises(ReadError, match="no such file"):
-        load_result(tmp_path / "missing.json")
-    (tmp_path / "bad.json").write_text("{oops")
-    with pytest.raises(ReadError, match="not valid JSON"):
-        load_result(tmp_path / "bad.json")
+    from ipfit.plotting import plot_surface
+
+    shape = synthetic.sphere(800)
+    for view, up in [((20.0, -60.0), "z"), ((0.0, 0.0), "z"), ((-35.0, 120.0), "y"), ((60.0, 200.0), "x")]:
+        ax = plot_surface(shape.polynomial, shape.points, resolution=20, show_points=True, view=view, up=up)
+        ax.figure.canvas.draw()
+        camera = ax._get_camera_loc()  # the eye's position in data coordinates, as matplotlib places it
+        (scatter,) = [c for c in ax.collections if isinstance(c, Path3DCollection)]
+        shown = {tuple(q) for q in np.column_stack(scatter._offsets3d).tolist()}
+        near = {tuple(p) for p in shape.points.tolist() if np.dot(p, camera) > 0}  # the normal of a unit sphere is p
+        assert shown == near and 0.4 < len(shown) / len(shape.points) < 0.6
+        close(ax)
+
+
+def test_display_points_sample_a_mesh_where_it_has_no_vertices():
+    import trimesh
+
+    from ipfit.plotting import display_points
+
+    capsule = trimesh.creation.capsule(height=2.0, radius=0.5)
+    vertices, faces = np.asarray(capsule.vertices), np.asarray(capsule.faces)
+    assert np.abs(vertices[:, 2]).min() > 0.9  # no vertex along the cylinder
+    shown = display_points(vertices, faces, count=2000)
+    assert shown.shape == (2000, 3)
+    middle = np.abs(shown[:, 2]) < 0.5
+    assert middle.sum() > 200  # the cylinder is covered, in proportion to its area
+    np.testing.assert_allclose(np.linalg.norm(shown[middle, :2], axis=1), 0.5, atol=0.02)
+    np.testing.assert_array_equal(display_points(vertices), vertices)  # no faces: the points themselves
+
+
+def _two_ovals():
+    """(x² − 1)² + y² = 1/4: two ovals around x = ±1."""
+    return synthetic.from_terms(2, 4, {(4, 0): 1, (2, 0): -2, (0, 2): 1, (0, 0): 0.75})
+
+
+def test_spurious_curves_in_their_own_colour():
+    from matplotlib.colors import to_rgba
+
+    from ipfit.plotting import SPURIOUS_COLOR, plot_result
+    from ipfit.zeroset import extract_zero_set
+
+    poly = _two_ovals()
+    zs = extract_zero_set(poly, bounds=[[-2, 2], [-1, 1]])
+    right = np.concatenate([c for c in zs.curves if c[:, 0].mean() > 0])
+    fig = plot_result(poly, right[::3], margin=2.0)  # the box holds both ovals
+    (ax,) = fig.axes
+    colours = {("right" if line.get_xdata().mean() > 0 else "left"): to_rgba(line.get_color()) for line in ax.lines}
+    assert colours["left"] == to_rgba(SPURIOUS_COLOR) and colours["right"] != to_rgba(SPURIOUS_COLOR)
+    assert "1 spurious piece (red)" in ax.get_title()
+    fig = plot_result(poly, right[::3], margin=2.0, mark_spurious=False)
+    assert len(fig.axes[0].lines) == 2
+    assert to_rgba(SPURIOUS_COLOR) not in {to_rgba(line.get_color()) for line in fig.axes[0].lines}
+
+
+def test_spurious_surface_pieces_are_red_and_see_through():
+    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+
+    from ipfit.plotting import SPURIOUS_ALPHA, plot_surface
+    from ipfit.quality import spurious_components
+    from ipfit.zeroset import extract_zero_set
+
+    blobs = synthetic.from_terms(3, 4, {(4, 0, 0): 1, (2, 0, 0): -2, (0, 2, 0): 1, (0, 0, 2): 1, (0, 0, 0): 0.75})
+    zs = extract_zero_set(blobs, bounds=[[-2, 2], [-1, 1], [-1, 1]], resolution=40)
+    right = zs.vertices[zs.vertices[:, 0] > 0]
+    flags = spurious_components(zs, right)
+    assert flags.tolist().count(True) == 1
+    ax = plot_surface(None, zero_set=zs, spurious=flags)
+    shape, ghost = [c for c in ax.collections if isinstance(c, Poly3DCollection)]
+    left = flags[zs.component_labels]
+    assert len(ghost.get_facecolor()) == left.sum() and len(shape.get_facecolor()) == (~left).sum()
+    assert ghost.get_zorder() > shape.get_zorder()  # drawn on top: visible even inside the shape
+    ghost_rgba, shape_rgba = ghost.get_facecolor(), shape.get_facecolor()
+    assert np.all(ghost_rgba[:, 3] == SPURIOUS_ALPHA) and np.all(shape_rgba[:, 3] == 1.0)
+    assert np.all(ghost_rgba[:, 0] > ghost_rgba[:, 2]) and np.all(shape_rgba[:, 2] > shape_rgba[:, 0])  # red, blue
+    with pytest.raises(InvalidInputError, match="spurious: expected 2 flags"):
+        plot_surface(None, zero_set=zs, spurious=[True], ax=ax)
+    close(ax)
+
+
+@pytest.mark.parametrize("name", ["fig.xyz", "fig", "fig.png.partial.raw"])
+def test_save_figure_refuses_unknown_suffixes(tmp_path, name):
+    from ipfit.plotting import plot_smoothness, save_figure
+
+    ax = plot_smoothness([2, 4], [0.8, 0.9])
+    with pytest.raises(InvalidInputError, match=r"^path: expected a figure file name ending in \.png, \.pdf"):
+        save_figure(ax.figure, tmp_path / name)
+    assert list(tmp_path.iterdir()) == []
+    close(ax)
+
+
+def test_save_figure_bounds_the_pixel_count(tmp_path):
+    from ipfit.plotting import MAX_PIXELS, plot_smoothness, save_figure
+
+    ax = plot_smoothness([2, 4], [0.8, 0.9])
+    width, height = ax.figure.get_size_inches()
+    limit = int(np.sqrt(MAX_PIXELS / (width * height)))
+    with pytest.raises(InvalidInputError, match=rf"^dpi: expected at most {limit} .* got 100000"):
+        save_figure(ax.figure, tmp_path / "s.png", dpi=100000)
+    with pytest.raises(InvalidInputError, match="dpi"):
+        save_figure(ax.figure, tmp_path / "s.png", dpi=0)
+    save_figure(ax.figure, tmp_path / "s.svg", dpi=limit)  # at the limit: fine
+    assert [p.name for p in tmp_path.iterdir()] == ["s.svg"]
+    close(ax)
+
+
+def test_plotting_still_offers_the_result_readers():
+    import ipfit.plotting as plotting
+    import ipfit.results as results
+
+    assert plotting.load_result is results.load_result and plotting.result_view is results.result_view
 
 
 def _figures_module():
@@ -209,3 +322,22 @@ def test_figures_for_every_bundled_dataset(tmp_path):
     for name in bundled.dataset_names():
         png = out / f"{name}.png"
         assert png.exists() and nonblank(png) > 0, name
+
+
+def test_result_without_per_degree_coefficients_shows_the_final_fit(ellipse_result):
+    from ipfit.plotting import plot_result
+
+    shape, result = ellipse_result
+    bare = dict(result, degrees=[{k: v for k, v in d.items() if k != "coefficients"} for d in result["degrees"]],
+                comparisons={})
+    fig = plot_result(bare, shape.points)
+    titles = [ax.get_title() for ax in fig.axes]
+    assert len(titles) == 2 and titles[0].startswith("(a) degree 2 (selected)") and "smoothness" in titles[1]
+
+
+def test_interrupted_run_is_not_called_fixed(ellipse_result):
+    from ipfit.plotting import plot_result
+
+    shape, result = ellipse_result
+    stopped = dict(result, degrees=result["degrees"][:1], comparisons={}, adaptive={"reason": "interrupted"})
+    assert plot_result(stopped, shape.points).axes[0].get_title().startswith("degree 2 (interrupted)")

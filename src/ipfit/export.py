@@ -45,7 +45,9 @@ def write_curves_svg(path: str | os.PathLike, curves, bounds, *, stroke: str = "
                      stroke_width: float | None = None) -> None:
     """Write polylines as an SVG drawing of the box ``bounds`` (y flipped to point up).
 
-    Closed curves (first point repeated at the end) become closed paths.
+    Path coordinates are the data's (as in the CSV); a transform on the group mirrors y
+    inside the box, since SVG's y grows downwards. Closed curves (first point repeated at
+    the end) become closed paths.
     """
     bounds = np.asarray(bounds, dtype=np.float64)
     (x0, x1), (y0, y1) = bounds
@@ -58,17 +60,17 @@ def write_curves_svg(path: str | os.PathLike, curves, bounds, *, stroke: str = "
             continue
         closed = len(c) > 2 and np.array_equal(c[0], c[-1])
         pts = c[:-1] if closed else c
-        # SVG's y grows downwards: mirror inside the box so the drawing is not upside down.
-        xs, ys = pts[:, 0], y0 + y1 - pts[:, 1]
-        coords = " L ".join(f"{_svg_number(x)} {_svg_number(y)}" for x, y in zip(xs.tolist(), ys.tolist()))
+        coords = " L ".join(f"{_svg_number(x)} {_svg_number(y)}" for x, y in pts.tolist())
         paths.append(f'  <path d="M {coords}{" Z" if closed else ""}"/>')
     text = (
         '<?xml version="1.0" encoding="UTF-8"?>\n'
         f'<svg xmlns="http://www.w3.org/2000/svg" viewBox="{_svg_number(x0)} {_svg_number(y0)} '
         f'{_svg_number(width)} {_svg_number(height)}" width="800" '
         f'height="{max(1, round(800 * height / width))}">\n'
-        f'<g fill="none" stroke="{stroke}" stroke-width="{_svg_number(stroke_width)}" '
-        'stroke-linejoin="round" stroke-linecap="round">\n'
+        "<desc>ipfit zero set. Path coordinates are data coordinates (as in the CSV); the group's transform "
+        "mirrors y inside the box so that y points up.</desc>\n"
+        f'<g transform="matrix(1 0 0 -1 0 {_svg_number(y0 + y1)})" fill="none" stroke="{stroke}" '
+        f'stroke-width="{_svg_number(stroke_width)}" stroke-linejoin="round" stroke-linecap="round">\n'
         + "\n".join(paths) + ("\n" if paths else "")
         + "</g>\n</svg>\n"
     )

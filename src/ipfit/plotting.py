@@ -2,9 +2,11 @@
 
 Every plotting function takes ``ax=None`` and returns the axes it drew on; with no axes it
 makes a new figure through pyplot (on the Agg backend when there is no display).
-:func:`plot_result` builds a whole multi-panel figure (the points, the zero set of every
-degree tried, the smoothness-versus-degree curve, the classic and 3L fits at the selected
-degree) without touching pyplot's global state, and can save it atomically.
+:func:`plot_result` builds a whole multi-panel figure (the zero set of every degree tried
+with the data, the smoothness-versus-degree curve, the classic and 3L fits at the selected
+degree) without touching pyplot's global state, and can save it atomically. Pieces of a
+zero set with no data near them (spurious components, see :mod:`ipfit.quality`) are drawn
+in :data:`SPURIOUS_COLOR`.
 
 matplotlib is imported only when a function here is called.
 """
@@ -14,14 +16,16 @@ from __future__ import annotations
 import math
 import os
 import sys
-from typing import Any, Mapping, NamedTuple, Sequence
+from pathlib import Path
+from typing import Any, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ._validation import as_points, error
-from .exceptions import InvalidInputError, ReadError
-from .polynomial import ImplicitPolynomial, Normalization
+from ._validation import as_faces, as_points, check_choice, check_int, error
+from .polynomial import ImplicitPolynomial
+from .quality import looks_like_contour, spurious_components
+from .results import ResultView, load_result, result_view  # noqa: F401  load_result/result_view: old home
 from .zeroset import ZeroSet, data_bounds, default_bounds, extract_zero_set
 
 __all__ = [
@@ -31,18 +35,30 @@ __all__ = [
     "plot_smoothness",
     "plot_result",
     "save_figure",
-    "load_result",
-    "ResultView",
-    "result_view",
+    "display_points",
+    "check_figure_path",
+    "FIGURE_FORMATS",
+    "SPURIOUS_COLOR",
 ]
 
 CURVE_COLOR = "#1f5fbf"
 SURFACE_COLOR = (0.55, 0.70, 0.92)
+SPURIOUS_COLOR = "#d62728"
+SPURIOUS_ALPHA = 0.25  # 3D: spurious pieces are see-through
 POINT_COLOR = "0.45"
+POINT_COLOR_3D = "#303030"
 METHOD_TITLES = {"lstsq": "classic linear", "3l": "3L", "ridge": "3L + ridge", "taubin": "Taubin",
                  "gradient_one": "gradient-one", "de": "DE", "pso": "PSO", "de+polish": "DE + polish",
                  "pso+polish": "PSO + polish", "polish": "polish (L-BFGS from the best seed)"}
+#: Figure file types (matplotlib's, less the raw and LaTeX ones).
+FIGURE_FORMATS = (".png", ".pdf", ".svg", ".svgz", ".eps", ".ps", ".jpg", ".jpeg", ".tif", ".tiff", ".webp")
+#: A figure may not exceed this many pixels at the requested dpi (4 bytes each in memory).
+MAX_PIXELS = 100_000_000
+#: The smoothness axis spans at least this much, so that differences in the 5th decimal of
+#: a near-perfect fit do not look like a dip.
+MIN_SMOOTHNESS_SPAN = 0.02
 _PLOT_RESOLUTION = {2: 400, 3: 72}
+_DISPLAY_SAMPLES = 2000
 
 
 def _method_label(name) -> str | None:
@@ -75,12 +91,36 @@ def _new_axes(dim: int):
     return ax
 
 
+def check_figure_path(path: str | os.PathLike, name: str = "path") -> Path:
+    """``path`` as a Path when its extension is a figure format (:data:`FIGURE_FORMATS`)."""
+    if not isinstance(path, (str, os.PathLike)):
+        raise error(name, "a file name such as figure.png", type(path).__name__)
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in FIGURE_FORMATS:
+        raise error(name, "a figure file name ending in " + ", ".join(FIGURE_FORMATS),
+                    f"{suffix!r}" if suffix else f"{str(path)!r} with no extension", "Use e.g. figure.png.")
+    return path
+
+
+def _check_dpi(dpi: Any, size_inches: Sequence[float]) -> int:
+    dpi = check_int(dpi, "dpi", minimum=1)
+    width, height = (float(v) for v in size_inches)
+    limit = math.floor(math.sqrt(MAX_PIXELS / (width * height)))
+    if dpi > limit:
+        raise error("dpi", f"at most {limit} for a {width:.3g} × {height:.3g} in figure "
+                    f"(at most {MAX_PIXELS // 1_000_000} million pixels)", str(dpi), "Lower the dpi.")
+    return dpi
+
+
 def save_figure(fig, path: str | os.PathLike, dpi: int = 110) -> None:
-    """Save a matplotlib figure atomically; the format follows the extension."""
+    """Save a matplotlib figure atomically; the format follows the extension (:data:`FIGURE_FORMATS`)."""
     from ._atomic import atomic_path
 
+    path = check_figure_path(path)
+    dpi = _check_dpi(dpi, fig.get_size_inches())
     with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=dpi)
+        fig.savefig(tmp, dpi=dpi, format=path.suffix[1:].lower())
 
 
 # -- single panels -------------------------------------------------------------------------
@@ -94,8 +134,40 @@ def _zero_set_for(poly, zero_set, points, bounds, margin, resolution) -> ZeroSet
                             resolution=resolution or _PLOT_RESOLUTION[poly.dim])
 
 
+def _spurious_flags(spurious, zs: ZeroSet) -> NDArray[np.bool_]:
+    if spurious is None:
+        return np.zeros(zs.n_components, dtype=bool)
+    flags = np.asarray(spurious, dtype=bool).ravel()
+    if flags.shape != (zs.n_components,):
+        raise error("spurious", f"{zs.n_components} flags, one per zero-set component", f"{flags.size} flags",
+                    "Use ipfit.quality.spurious_components(zero_set, points).")
+    return flags
+
+
+def display_points(points: ArrayLike, faces: ArrayLike | None = None, count: int = _DISPLAY_SAMPLES,
+                   rng: int = 0) -> NDArray[np.float64]:
+    """Points that show the data's shape: samples of its faces for a mesh, else the points.
+
+    A mesh's vertices alone can look like fragments (a capsule has none along its
+    cylinder); ``count`` samples spread over the faces by area do not.
+    """
+    pts = as_points(points)
+    if faces is None or pts.shape[1] != 3:
+        return pts
+    face_array = as_faces(faces, len(pts))
+    if len(face_array) == 0:
+        return pts
+    import trimesh
+
+    mesh = trimesh.Trimesh(vertices=pts, faces=face_array, process=False)
+    if not mesh.area > 0:
+        return pts
+    samples, _ = trimesh.sample.sample_surface(mesh, count, seed=rng)
+    return np.asarray(samples, dtype=np.float64)
+
+
 def plot_points(points: ArrayLike, ax=None, *, max_points: int = 4000, size: float | None = None,
-                color=POINT_COLOR, **kwargs):
+                color=None, **kwargs):
     """Scatter the data (every k-th point beyond ``max_points``); returns ``ax``."""
     pts = as_points(points)
     if ax is None:
@@ -103,17 +175,36 @@ def plot_points(points: ArrayLike, ax=None, *, max_points: int = 4000, size: flo
     stride = max(1, math.ceil(len(pts) / max_points))
     shown = pts[::stride]
     if pts.shape[1] == 3:
-        ax.scatter(shown[:, 0], shown[:, 1], shown[:, 2], s=size if size is not None else 1.0, c=color,
-                   alpha=0.5, depthshade=False, linewidths=0, **kwargs)
+        ax.scatter(shown[:, 0], shown[:, 1], shown[:, 2], s=size if size is not None else 2.0,
+                   c=color if color is not None else POINT_COLOR_3D, alpha=0.8, depthshade=False, linewidths=0,
+                   **kwargs)
     else:
-        ax.scatter(shown[:, 0], shown[:, 1], s=size if size is not None else 3.0, c=color, linewidths=0,
-                   zorder=1, **kwargs)
+        ax.scatter(shown[:, 0], shown[:, 1], s=size if size is not None else 3.0,
+                   c=color if color is not None else POINT_COLOR, linewidths=0, zorder=1, **kwargs)
     return ax
 
 
-def _camera(ax, view: tuple[float, float], up: str) -> None:
-    from ._validation import check_choice
+def _eye(view: tuple[float, float], up: str) -> NDArray[np.float64]:
+    """Unit vector from the scene towards the camera, as matplotlib's 3D axes place it."""
+    elev, azim = np.radians(view[0]), np.radians(view[1])
+    eye = np.array([np.cos(elev) * np.cos(azim), np.cos(elev) * np.sin(azim), np.sin(elev)])
+    return np.roll(eye, "xyz".index(up) - 2)
 
+
+def _facing_camera(points: NDArray, poly: ImplicitPolynomial, view, up: str) -> NDArray[np.bool_]:
+    """Points on the side of the surface the camera sees (their ∇f points towards it).
+
+    matplotlib draws a whole scatter above or below a surface, never interleaved; drawing
+    only the points that face the camera is what a depth test would show on a closed shape.
+    """
+    grads = poly.gradient(points)
+    # A canonical fit has f > 0 outside; check, so that a flipped sign does not hide the front.
+    if np.sum(grads * (points - points.mean(axis=0))) < 0:
+        grads = -grads
+    return grads @ _eye(view, up) > 0
+
+
+def _camera(ax, view: tuple[float, float], up: str) -> None:
     ax.view_init(elev=view[0], azim=view[1], vertical_axis=check_choice(up, "up", ("x", "y", "z")))
 
 
@@ -132,7 +223,7 @@ def _frame(ax, bounds: NDArray, dim: int, axis_off: bool) -> None:
 def plot_curve(poly: ImplicitPolynomial | None, points: ArrayLike | None = None, ax=None, *,
                zero_set: ZeroSet | None = None, bounds: ArrayLike | None = None, margin: float = 0.25,
                resolution: int | None = None, color=CURVE_COLOR, linewidth: float = 1.6, label: str | None = None,
-               axis_off: bool = False):
+               spurious: ArrayLike | None = None, spurious_color=SPURIOUS_COLOR, axis_off: bool = False):
     """Draw the zero set of a 2D polynomial (and the data points, if given); returns ``ax``.
 
     Parameters
@@ -141,17 +232,21 @@ def plot_curve(poly: ImplicitPolynomial | None, points: ArrayLike | None = None,
     points : data points to draw underneath, and to choose the box from.
     zero_set : an already extracted zero set to draw instead of extracting one.
     bounds, margin, resolution : see :func:`ipfit.zeroset.extract_zero_set`.
+    spurious : one flag per curve of the zero set; flagged curves are drawn in
+        ``spurious_color`` (see :func:`ipfit.quality.spurious_components`).
     """
     pts = None if points is None else as_points(points, dims=(2,))
     zs = _zero_set_for(poly, zero_set, pts, bounds, margin, resolution)
     if zs.dim != 2:
         raise error("poly", "a 2D polynomial (use plot_surface for 3D)", f"a {zs.dim}D one")
+    flags = _spurious_flags(spurious, zs)
     if ax is None:
         ax = _new_axes(2)
     if pts is not None:
         plot_points(pts, ax)
     for i, curve in enumerate(zs.curves):
-        ax.plot(curve[:, 0], curve[:, 1], color=color, lw=linewidth, zorder=2, label=label if i == 0 else None)
+        ax.plot(curve[:, 0], curve[:, 1], color=spurious_color if flags[i] else color, lw=linewidth, zorder=2,
+                label=label if i == 0 else None)
     _frame(ax, zs.bounds, 2, axis_off)
     return ax
 
@@ -168,20 +263,35 @@ def _shaded_colors(vertices: NDArray, faces: NDArray, color, light=(0.35, -0.45,
     return np.column_stack([rgb, np.ones(len(rgb))])
 
 
+def _coarser(zs: ZeroSet, max_faces: int) -> ZeroSet:
+    """Re-extract a mesh with more than ``max_faces`` faces on a coarser grid.
+
+    matplotlib draws every face as a polygon; beyond some 10⁴ faces it only gets slower.
+    """
+    if zs.dim == 3 and not zs.is_empty and len(zs.faces) > max_faces and zs.polynomial is not None:
+        resolution = max(8, int(max(zs.shape) * math.sqrt(max_faces / len(zs.faces))))
+        return extract_zero_set(zs.polynomial, bounds=zs.bounds, resolution=resolution)
+    return zs
+
+
 def plot_surface(poly: ImplicitPolynomial | None, points: ArrayLike | None = None, ax=None, *,
                  zero_set: ZeroSet | None = None, bounds: ArrayLike | None = None, margin: float = 0.25,
                  resolution: int | None = None, max_faces: int = 30000, color=SURFACE_COLOR,
-                 show_points: bool = False, view: tuple[float, float] = (20.0, -60.0), up: str = "z",
-                 axis_off: bool = False):
+                 show_points: bool = False, spurious: ArrayLike | None = None, spurious_color=SPURIOUS_COLOR,
+                 view: tuple[float, float] = (20.0, -60.0), up: str = "z", axis_off: bool = False):
     """Draw the zero set of a 3D polynomial as a shaded mesh; returns ``ax`` (a 3D axes).
 
     Parameters
     ----------
     poly : 3D polynomial (may be None when ``zero_set`` is given).
-    points : data, used to choose the box, and drawn when ``show_points``.
+    points : data, used to choose the box, and drawn over the surface when ``show_points``
+        (only the points on the side facing the camera, judged by the polynomial's
+        gradient, so that the surface hides the back of the cloud).
     zero_set : an already extracted zero set.
-    max_faces : a mesh with more faces is re-extracted on a coarser grid (matplotlib
-        draws every face as a polygon; beyond some 10⁴ faces it only gets slower).
+    max_faces : a mesh with more faces is re-extracted on a coarser grid (or thinned out
+        when it has no polynomial).
+    spurious : one flag per component of the zero set (as ``zero_set.component_labels``);
+        flagged components are drawn in ``spurious_color``.
     view : (elevation, azimuth) in degrees.
     up : the axis drawn vertically, 'x', 'y' or 'z' (scanned meshes such as the bunny are y-up).
     """
@@ -189,31 +299,50 @@ def plot_surface(poly: ImplicitPolynomial | None, points: ArrayLike | None = Non
     zs = _zero_set_for(poly, zero_set, pts, bounds, margin, resolution)
     if zs.dim != 3:
         raise error("poly", "a 3D polynomial (use plot_curve for 2D)", f"a {zs.dim}D one")
-    if not zs.is_empty and len(zs.faces) > max_faces and zs.polynomial is not None:
-        coarser = max(8, int(max(zs.shape) * math.sqrt(max_faces / len(zs.faces))))
-        zs = extract_zero_set(zs.polynomial, bounds=zs.bounds, resolution=coarser)
+    if spurious is None:  # flags given are for this very zero set: keep it as it is
+        zs = _coarser(zs, max_faces)
+    flags = _spurious_flags(spurious, zs)
     if ax is None:
         ax = _new_axes(3)
+    from matplotlib.colors import to_rgba
     from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
+    ax.computed_zorder = False  # draw in zorder: the points go over the surface
     if not zs.is_empty:
-        faces = zs.faces
-        if len(faces) > max_faces:  # no polynomial to re-extract from: thin out evenly
-            faces = faces[:: math.ceil(len(faces) / max_faces)]
-        # Without antialiasing, neighbouring faces leave no hairline seams between them.
-        collection = Poly3DCollection(zs.vertices[faces], facecolors=_shaded_colors(zs.vertices, faces, color),
-                                      edgecolors="none", linewidths=0, antialiased=False)
-        ax.add_collection3d(collection)
+        faces, labels = zs.faces, zs.component_labels
+        if len(faces) > max_faces:  # cannot re-extract: thin out evenly
+            keep = slice(None, None, math.ceil(len(faces) / max_faces))
+            faces, labels = faces[keep], labels[keep]
+        flagged = flags[labels]
+        # Spurious pieces go over the shape, see-through (one inside it still shows, one around it hides
+        # nothing), and the points over both.
+        for part, rgb, alpha, zorder in ((~flagged, color, 1.0, 1), (flagged, spurious_color, SPURIOUS_ALPHA, 2)):
+            if part.any():
+                colors = _shaded_colors(zs.vertices, faces[part], to_rgba(rgb)[:3])
+                colors[:, 3] = alpha
+                # Without antialiasing, neighbouring faces leave no hairline seams between them.
+                ax.add_collection3d(Poly3DCollection(zs.vertices[faces[part]], facecolors=colors, edgecolors="none",
+                                                     linewidths=0, antialiased=False, zorder=zorder))
     if show_points and pts is not None:
-        plot_points(pts, ax)
+        surface = poly if poly is not None else zs.polynomial
+        if surface is not None:
+            pts = pts[_facing_camera(pts, surface, view, up)]
+        if len(pts):
+            plot_points(pts, ax, zorder=3)
     _camera(ax, view, up)
     _frame(ax, zs.bounds, 3, axis_off)
     return ax
 
 
 def plot_smoothness(degrees: Sequence[int], smoothness: Sequence[float], selected: int | None = None, ax=None, *,
-                    color="#333333"):
-    """The smoothness measure against the degree (the paper's Figs. 4 and 8c); returns ``ax``."""
+                    color="#333333", min_span: float = MIN_SMOOTHNESS_SPAN):
+    """The smoothness measure against the degree (the paper's Figs. 4 and 8c); returns ``ax``.
+
+    Tick labels are plain numbers (no offset such as ``1e−5 + 8.96e−1``) and the y-axis
+    spans at least ``min_span``, so a flat curve looks flat.
+    """
+    from matplotlib.ticker import ScalarFormatter
+
     deg = np.asarray(degrees, dtype=float)
     sm = np.asarray(smoothness, dtype=float)
     if deg.shape != sm.shape or deg.ndim != 1:
@@ -225,6 +354,15 @@ def plot_smoothness(degrees: Sequence[int], smoothness: Sequence[float], selecte
         k = int(np.flatnonzero(deg == selected)[0])
         ax.plot([deg[k]], [sm[k]], "o", ms=11, mfc="none", mec="#d62728", mew=2, label=f"selected: {selected}")
         ax.legend(loc="lower right", fontsize="small", frameon=False)
+    finite = sm[np.isfinite(sm)]
+    if finite.size:
+        lo, hi = float(finite.min()), float(finite.max())
+        half = 0.55 * max(hi - lo, min_span)
+        mid = 0.5 * (lo + hi)
+        ax.set_ylim(mid - half, mid + half)
+    formatter = ScalarFormatter(useOffset=False)
+    formatter.set_scientific(False)
+    ax.yaxis.set_major_formatter(formatter)
     ax.set_xticks(deg)
     ax.set_xlabel("degree")
     ax.set_ylabel("smoothness")
@@ -234,73 +372,6 @@ def plot_smoothness(degrees: Sequence[int], smoothness: Sequence[float], selecte
 
 # -- results -------------------------------------------------------------------------------
 
-def load_result(result: Mapping[str, Any] | str | os.PathLike | ImplicitPolynomial) -> dict:
-    """A result as a dict: from a JSON path, a dict, or an :class:`ImplicitPolynomial`."""
-    if isinstance(result, ImplicitPolynomial):
-        return result.to_dict()
-    if isinstance(result, Mapping):
-        return dict(result)
-    if isinstance(result, (str, os.PathLike)):
-        from .polynomial import read_result_json
-
-        return read_result_json(result)
-    raise error("result", "a result dict, a path to a result JSON or an ImplicitPolynomial", type(result).__name__)
-
-
-class DegreeFit(NamedTuple):
-    degree: int
-    polynomial: ImplicitPolynomial | None
-    entry: dict
-
-
-class ResultView(NamedTuple):
-    """The polynomials of a result JSON, whether a plain fit or an adaptive run."""
-
-    polynomial: ImplicitPolynomial
-    degrees: list[DegreeFit]
-    selected: int | None
-    comparisons: dict[str, ImplicitPolynomial]
-    bounds: NDArray[np.float64] | None
-
-
-def result_view(result, source: str = "result") -> ResultView:
-    """Read the final polynomial, the per-degree fits and the comparison fits of a result."""
-    data = load_result(result)
-    try:
-        poly = ImplicitPolynomial.from_dict(data, source=source)
-    except InvalidInputError as exc:
-        raise ReadError(str(exc)) from None
-    norm: Normalization = poly.normalization
-
-    def build(coefficients, what: str, own_norm=None) -> ImplicitPolynomial:
-        # Entries share the top-level normalisation unless they carry their own.
-        try:
-            entry_norm = norm if not own_norm else Normalization(own_norm["center"], own_norm["scale"])
-            return ImplicitPolynomial.from_coefficients(coefficients, poly.dim, normalization=entry_norm)
-        except (InvalidInputError, TypeError, ValueError, KeyError) as exc:
-            raise ReadError(f"{source}: malformed {what} ({exc}). Regenerate the result with ipfit.") from None
-
-    degrees = []
-    for entry in data.get("degrees") or []:
-        if not isinstance(entry, Mapping) or "degree" not in entry:
-            raise ReadError(f"{source}: malformed \"degrees\" entry (no \"degree\"). Regenerate the result with ipfit.")
-        fit = build(entry["coefficients"], f"coefficients of degree {entry['degree']}", entry.get("normalization")) \
-            if entry.get("coefficients") is not None else None
-        degrees.append(DegreeFit(int(entry["degree"]), fit, dict(entry)))
-    comparisons = {}
-    for name, entry in (data.get("comparisons") or {}).items():
-        if isinstance(entry, Mapping) and entry.get("coefficients") is not None:
-            comparisons[str(name)] = build(entry["coefficients"], f"comparison {name!r}", entry.get("normalization"))
-    selected = data.get("selected_degree")
-    bounds = data.get("bounds")
-    if bounds is not None:
-        try:
-            bounds = np.asarray(bounds, dtype=np.float64).reshape(poly.dim, 2)
-        except (TypeError, ValueError):
-            bounds = None
-    return ResultView(poly, degrees, int(selected) if selected is not None else None, comparisons, bounds)
-
-
 def _panel_bounds(view: ResultView, points: NDArray | None, margin: float) -> NDArray:
     if points is not None:
         return data_bounds(points, margin)
@@ -309,24 +380,65 @@ def _panel_bounds(view: ResultView, points: NDArray | None, margin: float) -> ND
     return default_bounds(view.polynomial, margin)
 
 
+def _number(value, digits: int = 3) -> str | None:
+    return f"{value:.{digits}f}" if isinstance(value, (int, float)) and math.isfinite(value) else None
+
+
+def _panels(view: ResultView) -> list[tuple[str, str, Any]]:
+    """(title, kind, payload) of each panel of a result's figure."""
+    panels: list[tuple[str, str, Any]] = []
+    fitted = [d for d in view.degrees if d.polynomial is not None]
+    if fitted and not view.fixed_degree:
+        for d in fitted:
+            mark = " (selected)" if view.selected_degree == d.degree else ""
+            method = _method_label(d.entry.get("method"))
+            panels.append((f"degree {d.degree}{mark}" + (f"\n{method}" if method else ""), "fit", d.polynomial))
+    else:  # one polynomial to show: title it with its measures
+        entry = fitted[0].entry if fitted else {}
+        poly = fitted[0].polynomial if fitted else view.polynomial
+        method = _method_label(entry.get("method") or poly.method or view.polynomial.method)
+        measures = {**(view.data.get("measures") or {}), **entry}
+        stats = ", ".join(f"{name} {text}" for name in ("smoothness", "distance")
+                          if (text := _number(measures.get(name))) is not None)
+        stopped = (view.data.get("adaptive") or {}).get("reason") in ("interrupted", "incomplete")
+        mark = ("" if not view.degrees else " (interrupted)" if stopped else " (fixed)" if view.fixed_degree
+                else " (selected)")
+        title = f"degree {poly.degree}{mark}" + (f", {method}" if method else "") + (f"\n{stats}" if stats else "")
+        panels.append((title, "fit", poly))
+    smooth = [(d.degree, d.entry.get("smoothness")) for d in view.degrees]
+    smooth = [(g, s) for g, s in smooth if isinstance(s, (int, float)) and math.isfinite(s)]
+    if len(smooth) > 1:
+        panels.append(("smoothness vs degree", "smoothness", smooth))
+    for name, poly in view.comparisons.items():
+        panels.append((f"{_method_label(name)}, degree {poly.degree}", "fit", poly))
+    return panels
+
+
 def plot_result(result, points: ArrayLike | None = None, path: str | os.PathLike | None = None, *,
-                title: str | None = None, margin: float = 0.25, resolution: int | None = None,
-                max_faces: int = 15000, view: tuple[float, float] = (20.0, -60.0), up: str = "z",
-                ncols: int = 4, dpi: int = 110):
+                faces: ArrayLike | None = None, title: str | None = None, margin: float = 0.25,
+                resolution: int | None = None, max_faces: int = 15000, view: tuple[float, float] = (20.0, -60.0),
+                up: str = "z", ncols: int = 4, dpi: int = 110, mark_spurious: bool = True):
     """A paper-style figure of a result (Figs. 8–13), optionally saved to ``path``.
 
-    Panels, lettered (a), (b), ...: the original point cloud (3D, when ``points`` are
-    given); the zero set of every degree tried, the selected one marked; the smoothness
-    against the degree; the comparison fits at the selected degree (classic linear, 3L).
-    A plain polynomial result gives one panel with its zero set.
+    Panels, lettered (a), (b), ...: the zero set of every degree tried with the data (in
+    3D the points facing the camera over each surface), the selected one marked; the
+    smoothness against the degree; the comparison fits (classic linear, 3L) when the
+    result holds them. A result of one degree (a fixed-degree fit or a plain polynomial)
+    gives one panel for that degree, titled with its measures. With ``points``, spurious
+    components (no data within τ, as counted by :func:`ipfit.quality.quality`) are drawn
+    in :data:`SPURIOUS_COLOR`.
 
     Parameters
     ----------
-    result : dict, path to a result JSON, or ImplicitPolynomial.
-    points : the data (drawn under 2D curves; its box frames every panel).
-    path : where to save the figure (atomically; format by extension).
+    result : path to a result JSON, a dict, or an ImplicitPolynomial (see
+        :func:`ipfit.results.load_result`).
+    points : the data (drawn with the zero sets; its box frames every panel).
+    path : where to save the figure (atomically; format by extension, :data:`FIGURE_FORMATS`).
+    faces : triangles over ``points`` when the data is a mesh: the faces are sampled for
+        display, and spurious components are judged against them.
     resolution : grid nodes along the box's longest side (default 400 in 2D, 72 in 3D).
     view, up : 3D camera (elevation, azimuth) and vertical axis, see :func:`plot_surface`.
+    mark_spurious : colour the spurious components (needs ``points``).
 
     Returns
     -------
@@ -334,54 +446,44 @@ def plot_result(result, points: ArrayLike | None = None, path: str | os.PathLike
     """
     from matplotlib.figure import Figure
 
-    view_ = result_view(result, source=str(result) if isinstance(result, (str, os.PathLike)) else "result")
-    dim = view_.polynomial.dim
+    if path is not None:
+        path = check_figure_path(path)
+    view_ = result_view(result)
+    dim = view_.dim
     pts = None if points is None else as_points(points, dims=(dim,))
+    face_array = None if faces is None or pts is None or dim != 3 else as_faces(faces, len(pts))
+    if face_array is not None and len(face_array) == 0:
+        face_array = None
     box = _panel_bounds(view_, pts, margin)
     resolution = resolution or _PLOT_RESOLUTION[dim]
-
-    panels: list[tuple[str, Any]] = []
-    if dim == 3 and pts is not None:
-        panels.append(("original point cloud", ("points", None)))
-    fitted = [d for d in view_.degrees if d.polynomial is not None]
-    if fitted:
-        for d in fitted:
-            mark = " (selected)" if view_.selected == d.degree else ""
-            method = _method_label(d.entry.get("method"))
-            panels.append((f"degree {d.degree}{mark}" + (f"\n{method}" if method else ""), ("fit", d.polynomial)))
-    else:
-        method = _method_label(view_.polynomial.method)
-        panels.append((f"degree {view_.polynomial.degree}" + (f", {method}" if method else ""),
-                       ("fit", view_.polynomial)))
-    smooth = [(d.degree, d.entry.get("smoothness")) for d in view_.degrees]
-    smooth = [(g, s) for g, s in smooth if isinstance(s, (int, float)) and math.isfinite(s)]
-    if smooth:
-        panels.append(("smoothness vs degree", ("smoothness", smooth)))
-    for name, poly in view_.comparisons.items():
-        label = _method_label(name)
-        panels.append((f"{label}, degree {poly.degree}", ("fit", poly)))
-
+    panels = _panels(view_)
     nrows = math.ceil(len(panels) / max(1, ncols))
     ncols = math.ceil(len(panels) / nrows)  # balance the rows: 5 panels as 3 + 2, not 4 + 1
-    fig = Figure(figsize=(3.4 * ncols, 3.4 * nrows + (0.4 if title else 0)), layout="constrained")
+    size = (3.4 * ncols, 3.4 * nrows + (0.4 if title else 0))
+    dpi = _check_dpi(dpi, size)
+    fig = Figure(figsize=size, layout="constrained")
     if dim == 3:
         import mpl_toolkits.mplot3d  # noqa: F401  registers the 3d projection
-    for index, (label, (kind, payload)) in enumerate(panels):
-        letter = f"({chr(ord('a') + index)}) " if index < 26 else ""
-        projection = "3d" if dim == 3 and kind in ("fit", "points") else None
-        ax = fig.add_subplot(nrows, ncols, index + 1, projection=projection)
-        if kind == "points":
-            plot_points(pts, ax)
-            _camera(ax, view, up)
-            _frame(ax, box, 3, axis_off=True)
-        elif kind == "fit" and dim == 2:
-            plot_curve(payload, pts, ax, bounds=box, resolution=resolution, axis_off=True)
-        elif kind == "fit":
-            plot_surface(payload, None, ax, bounds=box, resolution=resolution, max_faces=max_faces, view=view,
-                         up=up, axis_off=True)
+    shown = None if pts is None else display_points(pts, face_array)
+    ordered = dim == 2 and pts is not None and looks_like_contour(pts)
+    for index, (label, kind, payload) in enumerate(panels):
+        letter = f"({chr(ord('a') + index)}) " if 1 < len(panels) and index < 26 else ""
+        ax = fig.add_subplot(nrows, ncols, index + 1, projection="3d" if dim == 3 and kind == "fit" else None)
+        if kind == "fit":
+            zs = _coarser(extract_zero_set(payload, bounds=box, resolution=resolution), max_faces)
+            flags = None
+            if mark_spurious and pts is not None and not zs.is_empty:
+                flags = spurious_components(zs, pts, faces=face_array, ordered_contour=ordered)
+                if flags.any():
+                    label += f"\n{int(flags.sum())} spurious piece{'s' if flags.sum() > 1 else ''} (red)"
+            if dim == 2:
+                plot_curve(payload, shown, ax, zero_set=zs, spurious=flags, axis_off=True)
+            else:
+                plot_surface(payload, shown, ax, zero_set=zs, spurious=flags, show_points=True, view=view, up=up,
+                             max_faces=max_faces, axis_off=True)
         else:
             g, s = zip(*payload)
-            plot_smoothness(g, s, view_.selected, ax)
+            plot_smoothness(g, s, view_.selected_degree, ax)
         ax.set_title(letter + label, fontsize="medium")
     if title:
         fig.suptitle(title)

@@ -11,7 +11,6 @@ import json
 import math
 import os
 from dataclasses import dataclass, field, replace
-from pathlib import Path
 from types import MappingProxyType
 from typing import Any, Mapping
 
@@ -19,13 +18,12 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from . import basis
+from ._result_schema import FORMAT_NAME, FORMAT_VERSION, parse_result_text, read_result_json, validate_result
 from ._validation import as_points, error
-from .exceptions import InvalidInputError
+from .exceptions import InvalidInputError, ReadError
 
 __all__ = ["Normalization", "ImplicitPolynomial", "FORMAT_NAME", "FORMAT_VERSION"]
 
-FORMAT_NAME = "ipfit"
-FORMAT_VERSION = 1
 _CHUNK = 1 << 16  # rows per evaluation block: bounds the temporary design matrix
 
 
@@ -48,8 +46,18 @@ class Normalization:
     scale: float
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "center", _readonly(self.center, np.float64))
-        scale = float(self.scale)
+        try:
+            center = _readonly(self.center, np.float64)
+        except (TypeError, ValueError):
+            raise error("center", "2 or 3 finite numbers", repr(self.center)[:60]) from None
+        if center.ndim != 1 or center.size not in (2, 3) or not np.isfinite(center).all():
+            raise error("center", "2 or 3 finite numbers", repr(center.tolist())[:60],
+                        "A NaN or infinite centre would make every value NaN.")
+        object.__setattr__(self, "center", center)
+        try:
+            scale = float(self.scale)
+        except (TypeError, ValueError):
+            raise error("scale", "a finite number > 0", repr(self.scale)[:60]) from None
         if not (math.isfinite(scale) and scale > 0):
             raise error("scale", "a finite number > 0", repr(self.scale))
         object.__setattr__(self, "scale", scale)
@@ -127,7 +135,11 @@ class ImplicitPolynomial:
     info: Mapping[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        exps = _readonly(self.exponents, np.int64)
+        raw = np.asarray(self.exponents)
+        if raw.dtype.kind not in "iub" and not (raw.dtype.kind == "f" and np.all(np.mod(raw, 1) == 0)):
+            raise error("exponents", "whole numbers", f"an array of dtype {raw.dtype}"
+                        + (" with fractions" if raw.dtype.kind == "f" else ""))
+        exps = _readonly(raw, np.int64)
         coef = _readonly(self.coefficients, np.float64)
         if exps.ndim != 2 or exps.shape[1] not in (2, 3):
             raise error("exponents", "an integer array of shape (d, 2) or (d, 3)", f"shape {exps.shape}")
@@ -282,46 +294,40 @@ class ImplicitPolynomial:
         """Write the JSON result atomically (temporary file, then rename)."""
         from ._atomic import write_text_atomic
 
+        validate_result(self.to_dict(), "polynomial")  # never write a file that cannot be read back
         write_text_atomic(path, self.to_json())
 
     @classmethod
-    def from_dict(cls, data: Mapping[str, Any], source: str = "JSON") -> "ImplicitPolynomial":
-        if not isinstance(data, Mapping) or data.get("format") != FORMAT_NAME:
-            raise InvalidInputError(f"{source}: not an ipfit result (expected \"format\": \"ipfit\"). "
-                                    "Pass a file written by ipfit.")
-        version = data.get("version")
-        if not isinstance(version, int) or version > FORMAT_VERSION:
-            raise InvalidInputError(f"{source}: unsupported ipfit format version {version!r} "
-                                    f"(this ipfit reads up to {FORMAT_VERSION}). Upgrade ipfit.")
-        try:
-            exps = np.asarray(data["exponents"], dtype=np.int64)
-            coef = np.asarray(data["coefficients"], dtype=np.float64)
-            norm_data = data.get("normalization") or {}
-            dim = int(data["dim"]) if "dim" in data else exps.shape[1]
-            norm = Normalization(norm_data.get("center", [0.0] * dim), norm_data.get("scale", 1.0))
-        except (KeyError, TypeError, ValueError) as exc:
-            raise InvalidInputError(f"{source}: malformed ipfit result ({exc}). "
-                                    "Regenerate it with ipfit.") from None
+    def from_dict(cls, data: Mapping[str, Any], source: str = "result") -> "ImplicitPolynomial":
+        """The final polynomial of a result's JSON object, validated completely first.
+
+        Every key of ``docs/result-format.md`` is checked (see :mod:`ipfit.results`), so a
+        corrupt file gives one :class:`~ipfit.InvalidInputError` naming the bad key.
+        """
+        data = validate_result(data, source)
+        norm = data.get("normalization")
+        normalization = Normalization(norm["center"], norm["scale"]) if norm else None
         measures = data.get("measures")
         if measures is not None:
-            measures = {k: v for k, v in measures.items() if isinstance(v, (int, float))}
-        return cls(exps, coef, norm, method=data.get("method"), measures=measures,
-                   info=data.get("info") or {})
+            measures = {k: v for k, v in measures.items() if isinstance(v, (int, float)) and not isinstance(v, bool)}
+        return cls(data["exponents"], data["coefficients"], normalization, method=data.get("method"),
+                   measures=measures, info=data.get("info") or {})
 
     @classmethod
-    def from_json(cls, text: str) -> "ImplicitPolynomial":
-        try:
-            data = json.loads(text)
-        except json.JSONDecodeError as exc:
-            raise InvalidInputError(f"JSON: not valid JSON ({exc.msg} at line {exc.lineno}). "
-                                    "Pass a file written by ipfit.") from None
-        return cls.from_dict(data)
+    def from_json(cls, text: str | bytes) -> "ImplicitPolynomial":
+        """The final polynomial of a result's JSON text."""
+        if isinstance(text, bytes):
+            text = text.decode("utf-8", errors="replace")
+        if not isinstance(text, str):
+            raise error("text", "the JSON text of an ipfit result (str or bytes)", type(text).__name__,
+                        "Use ImplicitPolynomial.load(path) for a file.")
+        return cls.from_dict(parse_result_text(text, "JSON"), source="JSON")
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> "ImplicitPolynomial":
-        """Read a JSON result written by :meth:`save` (extra keys are ignored)."""
-        from .exceptions import ReadError
-
+        """Read a JSON result written by :meth:`save` or ``ipfit fit`` (extra keys are ignored)."""
+        if not isinstance(path, (str, os.PathLike)):
+            raise error("path", "a path to a result JSON", type(path).__name__)
         data = read_result_json(path)
         try:
             return cls.from_dict(data, source=str(path))
@@ -331,27 +337,6 @@ class ImplicitPolynomial:
     def __repr__(self) -> str:
         return (f"ImplicitPolynomial(dim={self.dim}, degree={self.degree}, "
                 f"n_coefficients={self.n_coefficients}, method={self.method!r})")
-
-
-def read_result_json(path: str | os.PathLike) -> dict:
-    """The JSON object of a result file, or a :class:`~ipfit.ReadError` naming the file."""
-    from .exceptions import ReadError
-
-    path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise ReadError(f"{path}: no such file. Check the path.") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ReadError(f"{path}: cannot be read ({exc.__class__.__name__}). Check the file.") from None
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise ReadError(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno}). "
-                        "Pass a result written by ipfit.") from None
-    if not isinstance(data, dict):
-        raise ReadError(f"{path}: not an ipfit result (a JSON object was expected). Pass a result written by ipfit.")
-    return data
 
 
 def _sphere_directions(dim: int, n: int = 64) -> NDArray[np.float64]:

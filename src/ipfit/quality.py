@@ -39,7 +39,7 @@ from ._validation import as_faces, as_points, check_int, check_positive, error
 from .polynomial import ImplicitPolynomial
 from .zeroset import Samples, ZeroSet, extract_zero_set, sample_segments, sample_triangles
 
-__all__ = ["Quality", "quality", "looks_like_contour", "DEFAULT_TAU_FRACTION"]
+__all__ = ["Quality", "quality", "spurious_components", "looks_like_contour", "DEFAULT_TAU_FRACTION"]
 
 DEFAULT_TAU_FRACTION = 0.02
 DEFAULT_MAX_SAMPLES = 2_000_000
@@ -281,6 +281,35 @@ def quality(model: ImplicitPolynomial | ZeroSet, points: ArrayLike, *, faces: Ar
     -------
     Quality
     """
+    return _measure(model, points, faces=faces, ordered_contour=ordered_contour, tau=tau, tau_fraction=tau_fraction,
+                    bounds=bounds, margin=margin, resolution=resolution, spacing=spacing,
+                    max_samples=max_samples)[0]
+
+
+def spurious_components(zero_set: ZeroSet, points: ArrayLike, **options) -> NDArray[np.bool_]:
+    """Which pieces of ``zero_set`` are spurious: no part within τ of the data's shape.
+
+    One flag per component, numbered as ``zero_set.component_labels`` (2D: per curve);
+    their count is :attr:`Quality.n_spurious`. ``options`` are those of :func:`quality`.
+
+    Two ovals, (x² − 1)² + y² = 1/4, and data along the right one only:
+
+    >>> from ipfit.datasets import synthetic
+    >>> two = synthetic.from_terms(2, 4, {(4, 0): 1, (2, 0): -2, (0, 2): 1, (0, 0): 0.75})
+    >>> zs = extract_zero_set(two, bounds=[[-2, 2], [-1, 1]])
+    >>> right = np.concatenate([c for c in zs.curves if c[:, 0].mean() > 0])
+    >>> flags = spurious_components(zs, right)
+    >>> [("right" if c[:, 0].mean() > 0 else "left", bool(f)) for c, f in zip(zs.curves, flags)]
+    [('left', True), ('right', False)]
+    """
+    if not isinstance(zero_set, ZeroSet):
+        raise error("zero_set", "a ZeroSet (ipfit.extract_zero_set)", type(zero_set).__name__)
+    return _measure(zero_set, points, **options)[1]
+
+
+def _measure(model, points, *, faces=None, ordered_contour=False, tau=None, tau_fraction=DEFAULT_TAU_FRACTION,
+             bounds=None, margin=0.25, resolution=None, spacing=None,
+             max_samples=DEFAULT_MAX_SAMPLES) -> tuple[Quality, NDArray[np.bool_]]:
     pts = as_points(points, min_points=2)
     dim = pts.shape[1]
     if isinstance(model, ImplicitPolynomial):
@@ -320,9 +349,9 @@ def quality(model: ImplicitPolynomial | ZeroSet, points: ArrayLike, *, faces: Ar
 
     n_components = zs.n_components
     if zs.is_empty:
-        return Quality(recall=0.0, precision=0.0, f_score=0.0, chamfer=math.inf, n_components=0, n_spurious=0,
-                       closed=False, tau=tau, data_to_zero_set=math.inf, zero_set_to_data=math.inf,
-                       grid_step=zs.step, reference=reference)
+        return (Quality(recall=0.0, precision=0.0, f_score=0.0, chamfer=math.inf, n_components=0, n_spurious=0,
+                        closed=False, tau=tau, data_to_zero_set=math.inf, zero_set_to_data=math.inf,
+                        grid_step=zs.step, reference=reference), np.zeros(0, dtype=bool))
 
     samples = zs.sample(spacing, max_samples=max_samples)
     if dim == 2:
@@ -345,11 +374,12 @@ def quality(model: ImplicitPolynomial | ZeroSet, points: ArrayLike, *, faces: Ar
     f_score = 0.0 if precision + recall == 0 else 2 * precision * recall / (precision + recall)
     nearest = np.full(n_components, np.inf)
     np.minimum.at(nearest, samples.labels, d_zero)
-    spurious = _spurious_components(samples, nearest, tau)
-    return Quality(recall=recall, precision=precision, f_score=float(f_score),
-                   chamfer=0.5 * (data_to_zero + zero_to_data), n_components=n_components,
-                   n_spurious=len(spurious), closed=zs.closed, tau=tau, data_to_zero_set=data_to_zero,
-                   zero_set_to_data=zero_to_data, grid_step=zs.step, reference=reference, spurious=spurious)
+    flags = nearest > tau
+    return (Quality(recall=recall, precision=precision, f_score=float(f_score),
+                    chamfer=0.5 * (data_to_zero + zero_to_data), n_components=n_components,
+                    n_spurious=int(flags.sum()), closed=zs.closed, tau=tau, data_to_zero_set=data_to_zero,
+                    zero_set_to_data=zero_to_data, grid_step=zs.step, reference=reference,
+                    spurious=_spurious_components(samples, nearest, tau)), flags)
 
 
 def _spurious_components(samples, nearest: NDArray, tau: float) -> tuple[dict, ...]:

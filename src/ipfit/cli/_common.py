@@ -10,7 +10,7 @@ import signal
 import sys
 import threading
 from pathlib import Path
-from typing import Callable, Iterator, NamedTuple, Sequence
+from typing import Callable, Iterator, Mapping, NamedTuple, Sequence
 
 import numpy as np
 
@@ -185,11 +185,12 @@ def _input_files(inputs: Sequence[str | os.PathLike | None]) -> list[Path]:
     return [Path(p) for p in inputs if p is not None and Path(p).is_file()]
 
 
-def recorded_source(result: dict) -> str | None:
-    """The data file a result records (``"input": {"source": ...}``), or None."""
-    recorded = result.get("input") if isinstance(result, dict) else None
-    source = recorded.get("source") if isinstance(recorded, dict) else None
-    return source if isinstance(source, str) else None
+def recorded_sources(result) -> list[str]:
+    """The data files a result records (``"input": {"path": ..., "source": ...}``), to protect them."""
+    recorded = result.get("input") if isinstance(result, Mapping) else None
+    if not isinstance(recorded, Mapping):
+        return []
+    return [v for v in (recorded.get("path"), recorded.get("source")) if isinstance(v, str)]
 
 
 def _is_ipfit_result(path: Path) -> bool:

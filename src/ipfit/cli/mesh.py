@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import argparse
+import sys
+from pathlib import Path
 
-from ._common import Outputs, nonnegative_float, positive_int, recorded_source
+from ._common import Outputs, nonnegative_float, positive_int, recorded_sources
 
 NAME = "mesh"
 HELP = "extract the zero set of a result: mesh (PLY/OBJ/STL) in 3D, curves (SVG/CSV) in 2D"
@@ -13,8 +15,8 @@ Extract the zero set of the polynomial in RESULT.json (written by `ipfit fit`) o
 bounding box plus a margin, by marching cubes (3D) or marching squares (2D), and write it:
   3D: OUT.ply, OUT.obj or OUT.stl      2D: OUT.svg or OUT.csv (rows: curve,x,y)
 
-Without --points, the data recorded in the result ("input") frames the box when it can be read;
-else the result's "bounds" if present, else its normalisation.
+The box is that of --points DATA when given, else the result's "bounds", else that of the data
+the result records ("input"), else one around the result's normalisation.
 """
 
 
@@ -22,7 +24,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("result", metavar="RESULT.json", help="a result written by ipfit fit")
     parser.add_argument("-o", "--output", required=True, metavar="OUT",
                         help="output file; the format follows the extension (.ply .obj .stl | .svg .csv)")
-    parser.add_argument("--points", metavar="INPUT", help="the data (file or bundled name), to frame the box")
+    parser.add_argument("--points", metavar="DATA", help="the data (file or bundled name), to frame the box")
     parser.add_argument("--degree", type=positive_int, metavar="G",
                         help="use the fit of degree G from the result's per-degree table instead of the selected one")
     parser.add_argument("--margin", type=nonnegative_float, default=0.25,
@@ -31,74 +33,101 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="grid nodes along the box's longest side (default 128 in 3D, 512 in 2D)")
 
 
-def pick_polynomial(view, degree: int | None, source: str):
-    """The result's final polynomial, or its fit at ``degree``."""
+def warn(command: str, message: str) -> None:
+    print(f"ipfit {command}: warning: {message}", file=sys.stderr)
+
+
+def check_output_suffix(path: str, dim: int) -> None:
+    """Refuse an OUT whose extension is not a zero-set format for a ``dim``-D result, before any work."""
     from ..exceptions import InvalidInputError
+    from ..export import CURVE_FORMATS, MESH_FORMATS
 
-    if degree is None or (degree == view.polynomial.degree and not view.degrees):
-        return view.polynomial
-    for entry in view.degrees:
-        if entry.degree == degree and entry.polynomial is not None:
-            return entry.polynomial
-    tried = ", ".join(str(d.degree) for d in view.degrees if d.polynomial is not None) or "none"
-    raise InvalidInputError(f"--degree: expected a degree with coefficients in {source} ({tried}), got {degree}. "
-                            "Pick one of those.")
-
-
-def box_for(view, points, margin: float):
-    from ..zeroset import data_bounds, default_bounds
-
-    if points is not None:
-        return data_bounds(points, margin)
-    if view.bounds is not None:
-        return data_bounds(view.bounds.T, margin)
-    return default_bounds(view.polynomial, margin)
+    allowed, kind, example = (MESH_FORMATS, "a mesh", "out.ply") if dim == 3 else (CURVE_FORMATS, "curves",
+                                                                                    "out.svg")
+    suffix = Path(path).suffix.lower()
+    if suffix not in allowed:
+        got = repr(suffix) if suffix else f"{path!r} with no extension"
+        raise InvalidInputError(f"-o/--output: expected a file name ending in {' or '.join(allowed)} for a {dim}D "
+                                f"result ({kind}), got {got}. Use e.g. {example}.")
 
 
-def load_points(spec: str | None, dim: int, result: dict | None = None):
-    """(points, faces) of INPUT, or of the result's recorded input, or (None, None).
+def _recorded_input(view):
+    """The data recorded in a result: (Input, None) or (None, why it could not be used)."""
+    from ..datasets import dataset_names
+    from ..exceptions import InvalidInputError
+    from ._common import load_input
 
-    Without INPUT, the ``"input": {"source": ...}`` that ``ipfit fit`` records is tried
-    quietly: a result moved away from its data still plots, just without the points.
+    record = view.input
+    path, source = record.get("path"), record.get("source")
+    candidates = []
+    if isinstance(path, str):
+        candidates.append(path)
+    if isinstance(source, str) and (source in dataset_names() or path is None):
+        candidates.append(source)  # a bundled name; a path typed for a result older than "input.path"
+    if not candidates:
+        return None, f"{view.source} does not record its data"
+    reasons = []
+    for spec in candidates:
+        if spec not in dataset_names() and not Path(spec).is_file():
+            reasons.append(f"{spec} does not exist" + ("" if Path(spec).is_absolute() else " (here)"))
+            continue
+        try:
+            data = load_input(spec)
+        except InvalidInputError as exc:
+            reasons.append(str(exc).rstrip("."))
+            continue
+        n = record.get("n_points")
+        if data.points.shape[1] != view.dim or (isinstance(n, int) and len(data.points) != n):
+            reasons.append(f"{spec} has {len(data.points)} {data.points.shape[1]}D points, the result was "
+                           f"fitted to {n if isinstance(n, int) else 'others'} {view.dim}D points")
+            continue
+        return data, None
+    return None, "the data it records could not be found: " + "; ".join(reasons)
+
+
+def load_points(spec: str | None, view, command: str, *, required: bool = False, missing: str = ""):
+    """(points, faces) of --points DATA, or of the data recorded in the result, or (None, None).
+
+    When the recorded data cannot be found, one warning line says so and what is done
+    instead (``missing``); with ``required`` it is an error.
     """
     from ..exceptions import InvalidInputError
-
     from ._common import load_input
 
     if spec is None:
-        recorded = (result or {}).get("input")
-        source = recorded.get("source") if isinstance(recorded, dict) else None
-        if not isinstance(source, str):
+        data, why = _recorded_input(view)
+        if data is None:
+            if required:
+                raise InvalidInputError(f"--points: {why}. Pass the data with --points DATA.")
+            if view.input:  # a plain polynomial records no data: nothing was expected
+                warn(command, f"{why}; {missing}. Pass the data with --points DATA.")
             return None, None
-        try:
-            data = load_input(source)
-        except Exception:  # noqa: BLE001  best effort: any failure means "no points"
-            return None, None
-        if data.points.shape[1] != dim:
-            return None, None
-        return data.points, data.faces
-    data = load_input(spec)
-    if data.points.shape[1] != dim:
-        raise InvalidInputError(f"{spec}: expected {dim}D points to match the result, got "
-                                f"{data.points.shape[1]}D. Pass the data the result was fitted to.")
-    return data.points, data.faces
+    else:
+        data = load_input(spec)
+        if data.points.shape[1] != view.dim:
+            raise InvalidInputError(f"--points: expected {view.dim}D points to match the result, got "
+                                    f"{data.points.shape[1]}D in {spec}. Pass the data the result was fitted to.")
+    faces = data.faces if data.faces is not None and len(data.faces) else None
+    return data.points, faces
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..plotting import result_view
-    from ..zeroset import extract_zero_set
+    from ..results import result_view
+    from ..zeroset import data_bounds, default_bounds, extract_zero_set
 
-    from ..plotting import load_result
-
-    from ..export import CURVE_FORMATS, MESH_FORMATS
-
-    data = load_result(args.result)
-    outputs = Outputs([args.output], inputs=[args.result, args.points, recorded_source(data)],
-                      suffixes=MESH_FORMATS + CURVE_FORMATS)
-    view = result_view(data, source=args.result)
-    poly = pick_polynomial(view, args.degree, args.result)
-    points, _ = load_points(args.points, poly.dim, data)
-    box = box_for(view, points, args.margin)
+    view = result_view(args.result)
+    check_output_suffix(args.output, view.dim)
+    outputs = Outputs([args.output], inputs=[args.result, args.points, *recorded_sources(view.data)])
+    poly = view.fit(args.degree, name="--degree")
+    points = None
+    if args.points is not None or view.bounds is None:
+        points, _ = load_points(args.points, view, NAME, missing="framing the box by the result's normalisation")
+    if points is not None:
+        box = data_bounds(points, args.margin)
+    elif view.bounds is not None:
+        box = data_bounds(view.bounds.T, args.margin)
+    else:
+        box = default_bounds(poly, args.margin)
     zero_set = extract_zero_set(poly, bounds=box, resolution=args.resolution)
     with outputs.writing() as stage:
         zero_set.save(stage(args.output))

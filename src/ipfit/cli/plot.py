@@ -4,22 +4,40 @@ from __future__ import annotations
 
 import argparse
 
-from ._common import Outputs, finite_float, nonnegative_float, positive_int, recorded_source
+from ._common import Outputs, finite_float, nonnegative_float, positive_int, recorded_sources
 
 NAME = "plot"
-HELP = "draw a result: the zero set of each degree, smoothness vs degree, classic and 3L fits"
+HELP = "draw a result: the zero set of each degree with the data, smoothness vs degree, classic and 3L fits"
 DESCRIPTION = """\
-Draw RESULT.json (written by `ipfit fit`) as in the paper's Figs. 8-13: the points (3D), the zero
-set of every degree tried, the smoothness against the degree, and the classic linear and 3L fits
-at the selected degree when the result holds them. A plain polynomial gives one panel.
-Rendered without a display; the format follows OUT's extension (.png, .pdf, .svg).
+Draw RESULT.json (written by `ipfit fit`) as in the paper's Figs. 8-13: the zero set of every
+degree tried with the data (in 3D the points over each surface), the smoothness against the
+degree, and the classic linear and 3L fits at the selected degree when the result holds them.
+A fixed-degree result or a plain polynomial gives one panel. Spurious pieces of a zero set (no
+data near them) are drawn in red. Rendered without a display; the format follows OUT's extension
+(.png, .pdf, .svg, .eps, .jpg, .tif, .webp, ...).
+
+Without --points, the data the result records ("input": its path, or a bundled dataset's name)
+is drawn; when it cannot be found, a warning says so and the figure has no points.
 """
+
+MAX_DPI = 2400
+
+
+def _dpi(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if not 1 <= value <= MAX_DPI:
+        raise argparse.ArgumentTypeError(f"expected a whole number from 1 to {MAX_DPI}, got {value}")
+    return value
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("result", metavar="RESULT.json", help="a result written by ipfit fit")
-    parser.add_argument("-o", "--output", required=True, metavar="OUT.png", help="figure file")
-    parser.add_argument("--points", metavar="INPUT", help="the data (file or bundled name), drawn and framing the box")
+    parser.add_argument("-o", "--output", required=True, metavar="OUT.png",
+                        help="figure file; the format follows the extension (.png .pdf .svg ...)")
+    parser.add_argument("--points", metavar="DATA", help="the data (file or bundled name), drawn and framing the box")
     parser.add_argument("--no-points", action="store_true",
                         help="do not look for the data recorded in the result (\"input\") when --points is absent")
     parser.add_argument("--title", help="figure title")
@@ -31,24 +49,24 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="3D camera elevation and azimuth in degrees (default 20 -60)")
     parser.add_argument("--up", choices=("x", "y", "z"), default="z",
                         help="3D: the axis drawn vertically (default z; scanned meshes like the bunny are y-up)")
-    parser.add_argument("--dpi", type=positive_int, default=110, help="resolution of raster output (default 110)")
+    parser.add_argument("--dpi", type=_dpi, default=110,
+                        help=f"resolution of raster output, 1 to {MAX_DPI} (default 110)")
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..plotting import load_result, plot_result, result_view
+    from ..plotting import check_figure_path, plot_result
+    from ..results import result_view
     from .mesh import load_points
 
-    from matplotlib.backend_bases import FigureCanvasBase
-
-    figure_suffixes = tuple(sorted("." + s for s in FigureCanvasBase.get_supported_filetypes()))
-    data = load_result(args.result)
-    outputs = Outputs([args.output], inputs=[args.result, args.points, recorded_source(data)],
-                      suffixes=figure_suffixes)
-    view = result_view(data, source=args.result)
-    points, _ = load_points(None if args.no_points else args.points, view.polynomial.dim,
-                            None if args.no_points else data)
+    check_figure_path(args.output, "-o/--output")
+    view = result_view(args.result)
+    outputs = Outputs([args.output], inputs=[args.result, args.points, *recorded_sources(view.data)])
+    points = faces = None
+    if not args.no_points:
+        points, faces = load_points(args.points, view, NAME, missing="drawing the zero sets without the points")
     with outputs.writing() as stage:
-        fig = plot_result(data, points=points, path=stage(args.output), title=args.title, margin=args.margin,
-                          resolution=args.resolution, view=tuple(args.view), up=args.up, dpi=args.dpi)
+        fig = plot_result(view.data, points=points, faces=faces, path=stage(args.output), title=args.title,
+                          margin=args.margin, resolution=args.resolution, view=tuple(args.view), up=args.up,
+                          dpi=args.dpi)
     print(f"{args.output}: {len(fig.axes)} panel(s)")
     return 0

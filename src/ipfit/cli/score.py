@@ -1,18 +1,18 @@
-"""``ipfit score RESULT.json INPUT``: geometric quality of a fit, measured on its zero set."""
+"""``ipfit score RESULT.json --points DATA``: geometric quality of a fit, measured on its zero set."""
 
 from __future__ import annotations
 
 import argparse
 import json
 
-from ._common import Outputs, nonnegative_float, positive_int
+from ._common import Outputs, nonnegative_float, positive_int, recorded_sources
 
 NAME = "score"
 HELP = "measure a fit geometrically: recall, precision, F-score, Chamfer, spurious components"
 DESCRIPTION = """\
-Measure how well the zero set of RESULT.json matches INPUT (a point file or a bundled dataset),
-without trusting the fitting objective. With a tolerance tau (default 2% of the data's bounding-box
-diagonal):
+Measure how well the zero set of RESULT.json matches the data (--points DATA: a point file or a
+bundled dataset; default: the data the result records), without trusting the fitting objective.
+With a tolerance tau (default 2% of the data's bounding-box diagonal):
   recall        fraction of points within tau of the zero set
   precision     fraction of the zero set within tau of the data's shape (its faces for a mesh,
                 its polyline for an ordered 2D contour, else the points)
@@ -21,12 +21,15 @@ diagonal):
   n_components  pieces of the zero set in the box; n_spurious: those with nothing within tau
   closed        whether the zero set closes inside the box
 --write adds them to RESULT.json as "quality" (atomically; other keys are kept as they are).
+`ipfit score RESULT.json DATA` (the data as a second argument) still works but is deprecated.
 """
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("result", metavar="RESULT.json", help="a result written by ipfit fit")
-    parser.add_argument("input", metavar="INPUT", help="the data: point file or bundled dataset name")
+    parser.add_argument("legacy_points", nargs="?", metavar="DATA", help=argparse.SUPPRESS)
+    parser.add_argument("--points", metavar="DATA",
+                        help="the data: point file or bundled dataset name (default: the data the result records)")
     parser.add_argument("--degree", type=positive_int, metavar="G",
                         help="score the fit of degree G from the result's per-degree table")
     tol = parser.add_mutually_exclusive_group()
@@ -45,9 +48,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..exceptions import InvalidInputError
-    from ..plotting import load_result, result_view
     from ..quality import looks_like_contour, quality
-    from .mesh import load_points, pick_polynomial
+    from ..results import result_view, write_result
+    from .mesh import load_points, warn
 
     if args.write and args.degree is not None:
         raise InvalidInputError("--write: expected the selected fit, got --degree too. "
@@ -56,14 +59,18 @@ def run(args: argparse.Namespace) -> int:
         raise InvalidInputError(f"--tau: expected a number > 0, got {args.tau}. Pass a positive tolerance.")
     if args.tau is None and args.tau_fraction <= 0:
         raise InvalidInputError(f"--tau-fraction: expected a number > 0, got {args.tau_fraction}.")
+    spec = args.points
+    if args.legacy_points is not None:
+        if spec is not None:
+            raise InvalidInputError(f"--points: given twice ({args.legacy_points!r} after RESULT.json and "
+                                    f"{spec!r}). Pass the data once, with --points DATA.")
+        spec = args.legacy_points
+        warn(NAME, f"'ipfit score RESULT DATA' is deprecated; use 'ipfit score {args.result} --points {spec}'.")
+    view = result_view(args.result)
     # --write updates RESULT.json in place (that is its purpose); the data must never be the target
-    outputs = Outputs([args.result], inputs=[args.input], option="--write") if args.write else None
-    data = load_result(args.result)
-    view = result_view(data, source=args.result)
-    poly = pick_polynomial(view, args.degree, args.result)
-    points, faces = load_points(args.input, poly.dim)
-    if faces is not None and len(faces) == 0:
-        faces = None
+    outputs = Outputs([args.result], inputs=[spec, *recorded_sources(view.data)], option="--write") if args.write else None
+    poly = view.fit(args.degree, name="--degree")
+    points, faces = load_points(spec, view, NAME, required=True)
     ordered = poly.dim == 2 and faces is None and (
         args.contour == "yes" or (args.contour == "auto" and looks_like_contour(points)))
     q = quality(poly, points, faces=faces, ordered_contour=ordered, tau=args.tau, tau_fraction=args.tau_fraction,
@@ -71,10 +78,12 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(q.to_dict(), indent=1))
     else:
-        print(f"{args.result} against {args.input} (degree {poly.degree}):")
+        data_name = spec if spec is not None else view.input.get("source", "its recorded data")
+        print(f"{args.result} against {data_name} (degree {poly.degree}):")
         print(q)
     if args.write:
+        data = dict(view.data)
         data["quality"] = q.to_dict()  # a new key at the end, or the old one updated in place
         with outputs.writing() as stage:
-            stage(args.result).write_text(json.dumps(data, indent=1), encoding="utf-8")
+            write_result(stage(args.result), data)
     return 0

@@ -1,0 +1,359 @@
+"""The result JSON's schema and its validator (the public face is :mod:`ipfit.results`).
+
+This module sits below :mod:`ipfit.polynomial` so that ``ImplicitPolynomial.from_dict``
+can validate a whole file; :mod:`ipfit.results` adds the reading of its polynomials.
+
+The schema is one table, :data:`SCHEMA`: every documented key with its type, whether it
+is required, and its meaning. ``docs/result-format.md`` is generated from it
+(:func:`schema_markdown`). Keys are a contract: later versions add keys, never rename
+them; keys the table does not know are kept and not checked.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import numbers
+import os
+from pathlib import Path
+from typing import Any, Callable, Mapping, NamedTuple
+
+import numpy as np
+
+from . import basis
+from ._validation import error
+from .exceptions import InvalidInputError, ReadError
+
+__all__ = ["FORMAT_NAME", "FORMAT_VERSION", "Key", "SCHEMA", "validate_result", "read_result_json",
+           "schema_markdown"]
+
+FORMAT_NAME = "ipfit"
+FORMAT_VERSION = 1
+_FIX = "Regenerate the result with ipfit, or repair that key."
+_RELATIVE_SCALE = 1e-12
+
+
+# -- value types: (text for the docs and the messages, test) ----------------------------------
+
+def _is_int(v) -> bool:
+    return isinstance(v, numbers.Integral) and not isinstance(v, bool)
+
+
+def _is_number(v) -> bool:
+    return isinstance(v, numbers.Real) and not isinstance(v, bool)
+
+
+def _is_whole(v) -> bool:
+    # 2.0 is a whole number too (some JSON writers print every number as a float)
+    return _is_int(v) or (_is_number(v) and math.isfinite(v) and float(v).is_integer())
+
+
+class _Type(NamedTuple):
+    text: str
+    test: Callable[[Any], bool]
+
+
+_TYPES = {
+    "object": _Type("an object", lambda v: isinstance(v, Mapping)),
+    "list of objects": _Type("a list of objects", lambda v: isinstance(v, list)
+                             and all(isinstance(e, Mapping) for e in v)),
+    "object of objects": _Type("an object whose values are objects", lambda v: isinstance(v, Mapping)
+                               and all(isinstance(e, Mapping) for e in v.values())),
+    "string": _Type("a string", lambda v: isinstance(v, str)),
+    "boolean": _Type("true or false", lambda v: isinstance(v, bool)),
+    "integer >= 0": _Type("a whole number >= 0", lambda v: _is_whole(v) and v >= 0),
+    "integer >= 1": _Type("a whole number >= 1", lambda v: _is_whole(v) and v >= 1),
+    "number": _Type("a number", lambda v: _is_number(v)),
+    "number > 0": _Type("a finite number > 0", lambda v: _is_number(v) and math.isfinite(v) and v > 0),
+    "numbers": _Type("a list of finite numbers", lambda v: isinstance(v, list)
+                     and all(_is_number(e) and math.isfinite(e) for e in v)),
+    "exponent rows": _Type("a list of rows of whole numbers >= 0, all of length 2 or all of length 3",
+                           lambda v: isinstance(v, list) and bool(v) and all(isinstance(r, list) for r in v)
+                           and len({len(r) for r in v}) == 1 and len(v[0]) in (2, 3)
+                           and all(_is_whole(e) and e >= 0 for r in v for e in r)),
+    "bounds": _Type("a list of [low, high] pairs of finite numbers, one per axis, low <= high",
+                    lambda v: isinstance(v, list) and all(
+                        isinstance(r, list) and len(r) == 2 and all(_is_number(e) and math.isfinite(e) for e in r)
+                        and r[0] <= r[1] for r in v)),
+    '"ipfit"': _Type(f'the string "{FORMAT_NAME}"', lambda v: v == FORMAT_NAME),
+    "version": _Type(f"a whole number from 1 to {FORMAT_VERSION} (the newest format this ipfit reads)",
+                     lambda v: _is_int(v) and 1 <= v <= FORMAT_VERSION),
+    "2 or 3": _Type("2 or 3", lambda v: _is_int(v) and v in (2, 3)),
+}
+
+
+class Key(NamedTuple):
+    """One documented key. ``path`` uses ``a.b`` for nesting, ``a[].b`` for the entries
+    of a list and ``a.*.b`` for the values of an object with free names."""
+
+    path: str
+    type: str
+    required: bool
+    meaning: str
+
+
+def _k(path: str, type_: str, meaning: str, required: bool = False) -> Key:
+    return Key(path, type_, required, meaning)
+
+
+_QUALITY = (
+    ("recall", "number", "fraction of data points within tau of the zero set"),
+    ("precision", "number", "fraction of the zero set within tau of the data's shape"),
+    ("f_score", "number", "harmonic mean of recall and precision"),
+    ("chamfer", "number", "symmetric Chamfer distance, user units"),
+    ("n_components", "integer >= 0", "pieces of the zero set in the box"),
+    ("n_spurious", "integer >= 0", "pieces with no part within tau of the data"),
+    ("closed", "boolean", "the zero set closes inside the box"),
+    ("tau", "number", "the tolerance, user units"),
+    ("data_to_zero_set", "number", "mean distance from the data to the zero set"),
+    ("zero_set_to_data", "number", "mean distance from the zero set to the data"),
+    ("grid_step", "number", "step of the extraction grid"),
+    ("reference", "string", 'what precision was measured against: "faces", "contour" or "points"'),
+)
+
+
+def _normalization(prefix: str, meaning: str) -> tuple[Key, ...]:
+    return (_k(prefix, "object", meaning),
+            _k(f"{prefix}.center", "numbers", "centre c, one value per axis", required=True),
+            _k(f"{prefix}.scale", "number > 0", "scale s", required=True))
+
+
+SCHEMA: tuple[Key, ...] = (
+    _k("format", '"ipfit"', "marks the file as an ipfit result", required=True),
+    _k("version", "version", "format version; a newer file is refused with a message", required=True),
+    _k("dim", "2 or 3", "2 for a curve, 3 for a surface; must agree with the exponents"),
+    _k("degree", "integer >= 1", "total degree; must agree with the exponents"),
+    _k("exponents", "exponent rows", "one row per monomial, in the graded order of ipfit.basis.exponents "
+       "(1, x, y, z, x², xy, ...)", required=True),
+    _k("coefficients", "numbers", "one per exponent row, not all zero", required=True),
+    *_normalization("normalization", "f is evaluated at (x − center) / scale; absent means center 0, scale 1"),
+    _k("method", "string", "the fit that produced the polynomial"),
+    _k("measures", "object", "the paper's measures on the fitting data"),
+    _k("measures.dissimilarity", "number", "mean absolute value of f on the data (paper, Eq. 9)"),
+    _k("measures.smoothness", "number", "mean agreement of ∇f with the normals (Eq. 10)"),
+    _k("measures.distance", "number", "dissimilarity + delta (1 − smoothness)"),
+    _k("measures.delta", "number", "the delta used"),
+    _k("info", "object", "free-form diagnostics of the fit (condition number, rank, ...)"),
+    _k("selected_degree", "integer >= 1", "the degree chosen; one of degrees[].degree"),
+    _k("degrees", "list of objects", "one entry per degree tried, in order"),
+    _k("degrees[].degree", "integer >= 1", "the degree", required=True),
+    _k("degrees[].dissimilarity", "number", "its dissimilarity"),
+    _k("degrees[].smoothness", "number", "its smoothness"),
+    _k("degrees[].distance", "number", "its distance"),
+    _k("degrees[].seconds", "number", "time spent on it"),
+    _k("degrees[].coefficients", "numbers", "its polynomial, C(degree + dim, dim) values in graded order"),
+    _k("degrees[].method", "string", "the fit used at that degree"),
+    *_normalization("degrees[].normalization", "its own normalisation; absent means the top-level one"),
+    _k("degrees[].quality", "object", "geometric quality of that degree, keys as in quality"),
+    *(_k(f"degrees[].quality.{name}", t, m) for name, t, m in _QUALITY),
+    _k("adaptive", "object", "settings and outcome of the degree search"),
+    _k("adaptive.epsilon", "number", "stopping threshold on the smoothness gain"),
+    _k("adaptive.delta", "number", "the distance's delta"),
+    _k("adaptive.method", "string", "fixed-degree method"),
+    _k("adaptive.reason", "string", "why the search stopped where it did"),
+    _k("adaptive.rule", "string", '"geometric" or "paper"'),
+    _k("adaptive.far_weight", "number", "weight of the far-field term"),
+    _k("adaptive.seconds", "number", "total time"),
+    _k("quality", "object", "geometric quality of the final polynomial (ipfit score --write)"),
+    *(_k(f"quality.{name}", t, m) for name, t, m in _QUALITY),
+    _k("input", "object", "the data that was fitted"),
+    _k("input.source", "string", "INPUT as typed (a path or a bundled dataset name)"),
+    _k("input.path", "string", "absolute path of INPUT when it was a file"),
+    _k("input.n_points", "integer >= 0", "number of points"),
+    _k("input.normals", "string", '"file" or "estimated"'),
+    _k("bounds", "bounds", "the data's bounding box, one [low, high] per axis"),
+    _k("comparisons", "object of objects", "other fits for comparison, by name (e.g. classic linear, 3L)"),
+    _k("comparisons.*.coefficients", "numbers", "its polynomial in graded order", required=True),
+    _k("comparisons.*.degree", "integer >= 1", "its degree; must agree with the number of coefficients"),
+    _k("comparisons.*.method", "string", "the fit"),
+    *_normalization("comparisons.*.normalization", "its own normalisation; absent means the top-level one"),
+)
+
+_BY_PARENT: dict[str, list[Key]] = {}
+for _key in SCHEMA:
+    _parent = _key.path.rsplit(".", 1)[0] if "." in _key.path else ""
+    _BY_PARENT.setdefault(_parent, []).append(_key)
+
+
+# -- validation ----------------------------------------------------------------------------
+
+def _got(value) -> str:
+    """A JSON reader's description of a value."""
+    if value is None:
+        return "null"
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return "the string " + json.dumps(value if len(value) <= 40 else value[:37] + "...")
+    if isinstance(value, Mapping):
+        return "an object"
+    if isinstance(value, list):
+        return f"a list of {len(value)} item{'s' if len(value) != 1 else ''}" if value else "an empty list"
+    if _is_number(value):
+        return "NaN" if value != value else repr(value).replace("inf", "Infinity")
+    return type(value).__name__
+
+
+def _fail(source: str, where: str, expected: str, got: str, fix: str = _FIX) -> InvalidInputError:
+    return error(f'{source}: "{where}"', expected, got, fix)
+
+
+def _expected(key: Key) -> str:
+    text = _TYPES[key.type].text
+    required = [k.path.rsplit(".", 1)[1] for k in _BY_PARENT.get(key.path, ()) if k.required]
+    if required:
+        text += " with " + " and ".join(f'"{name}"' for name in required)
+    return text
+
+
+def _walk(obj: Mapping, parent: str, where: str, source: str) -> None:
+    for key in _BY_PARENT.get(parent, ()):
+        name = key.path.rsplit(".", 1)[-1]
+        shown = f"{where}.{name}" if where else name
+        value = obj.get(name)
+        if value is None:
+            if key.required:
+                raise _fail(source, shown, _expected(key), "nothing" if name not in obj else "null")
+            continue
+        if not _TYPES[key.type].test(value):
+            raise _fail(source, shown, _expected(key), _got(value))
+        if key.type == "object":
+            _walk(value, key.path, shown, source)
+        elif key.type == "list of objects":
+            for i, entry in enumerate(value):
+                _walk(entry, key.path + "[]", f"{shown}[{i}]", source)
+        elif key.type == "object of objects":
+            for entry_name, entry in value.items():
+                _walk(entry, key.path + ".*", f"{shown}.{entry_name}", source)
+
+
+def _check_polynomial(coefficients: list, dim: int, degree: int, where: str, source: str) -> None:
+    expected = basis.n_coefficients(dim, degree)
+    if len(coefficients) != expected:
+        raise _fail(source, where, f"{expected} values for a degree-{degree} {dim}D polynomial",
+                    f"{len(coefficients)} values")
+    if not any(coefficients):
+        raise _fail(source, where, "at least one non-zero value", "all zeros",
+                    "An all-zero polynomial has no zero set; regenerate the result with ipfit.")
+
+
+def _check_normalization(norm: Mapping | None, dim: int, where: str, source: str) -> None:
+    if norm is None:
+        return
+    if len(norm["center"]) != dim:
+        raise _fail(source, f"{where}.center", f"{dim} values, one per axis", f"{len(norm['center'])} values")
+    # Below this, (x − center) / scale has no significant digits left: every box collapses.
+    smallest = _RELATIVE_SCALE * max(1.0, *(abs(c) for c in norm["center"]))
+    if norm["scale"] < smallest:
+        raise _fail(source, f"{where}.scale", f"at least {smallest:.3g} ({_RELATIVE_SCALE:g} × the centre's size, "
+                    "below which coordinates lose every digit)", _got(norm["scale"]))
+
+
+def validate_result(data: Any, source: str = "result") -> dict:
+    """Check a result's JSON object against :data:`SCHEMA` and its internal consistency.
+
+    Returns ``data`` itself (unchanged) when it is valid; otherwise raises
+    :class:`~ipfit.InvalidInputError` with one line naming the first bad key.
+
+    >>> line = {"format": "ipfit", "version": 1, "exponents": [[0, 0], [1, 0], [0, 1]],
+    ...         "coefficients": [0.0, 1.0, -1.0]}
+    >>> validate_result(line) is line
+    True
+    >>> validate_result({**line, "normalization": [0, 0, 1]})  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    ipfit.exceptions.InvalidInputError: result: "normalization": expected an object with "center" and "scale", ...
+    """
+    if not isinstance(data, Mapping):
+        raise error(source, "a JSON object written by ipfit (a result)", _got(data), "Pass a result written by ipfit.")
+    if data.get("format") != FORMAT_NAME:
+        raise InvalidInputError(f'{source}: not an ipfit result (expected "format": "{FORMAT_NAME}", got '
+                                f'{_got(data.get("format")) if "format" in data else "no format"}). '
+                                "Pass a result written by ipfit.")
+    _walk(data, "", "", source)
+    rows = [[int(e) for e in row] for row in data["exponents"]]
+    dim = len(rows[0])
+    degree = max(sum(row) for row in rows)
+    if data.get("dim") is not None and data["dim"] != dim:
+        raise _fail(source, "dim", f"{dim}, the number of columns of the exponents", _got(data["dim"]))
+    if data.get("degree") is not None and data["degree"] != degree:
+        raise _fail(source, "degree", f"{degree}, the highest total degree in the exponents", _got(data["degree"]))
+    # Count first: a corrupt exponent (say 10**9) must not build a table that large.
+    if len(rows) != basis.n_coefficients(dim, degree) or not np.array_equal(rows, basis.exponents(dim, degree)):
+        raise _fail(source, "exponents", f"the graded order of ipfit.basis.exponents({dim}, {degree}) "
+                    "(1, x, y, ..., every monomial up to the degree)", "another order or an incomplete table")
+    if len(data["coefficients"]) != len(rows):
+        raise _fail(source, "coefficients", f"{len(rows)} values, one per exponent row",
+                    f"{len(data['coefficients'])} values")
+    _check_polynomial(data["coefficients"], dim, degree, "coefficients", source)
+    _check_normalization(data.get("normalization"), dim, "normalization", source)
+    if data.get("bounds") is not None and len(data["bounds"]) != dim:
+        raise _fail(source, "bounds", f"{dim} [low, high] pairs, one per axis", f"{len(data['bounds'])} pairs")
+    tried = []
+    for i, entry in enumerate(data.get("degrees") or ()):
+        g = int(entry["degree"])
+        tried.append(g)
+        if entry.get("coefficients") is not None:
+            _check_polynomial(entry["coefficients"], dim, g, f"degrees[{i}].coefficients", source)
+        _check_normalization(entry.get("normalization"), dim, f"degrees[{i}].normalization", source)
+    selected = data.get("selected_degree")
+    if selected is not None and tried and selected not in tried:
+        raise _fail(source, "selected_degree", "one of the degrees tried (" + ", ".join(map(str, tried)) + ")",
+                    _got(selected))
+    for name, entry in (data.get("comparisons") or {}).items():
+        where = f"comparisons.{name}"
+        coef = entry["coefficients"]
+        try:
+            g = basis.degree_from_n_coefficients(dim, len(coef))
+        except ValueError:
+            raise _fail(source, f"{where}.coefficients", f"C(g + {dim}, {dim}) values for some degree g",
+                        f"{len(coef)} values") from None
+        if entry.get("degree") is not None and entry["degree"] != g:
+            raise _fail(source, f"{where}.degree", f"{g}, the degree of its {len(coef)} coefficients",
+                        _got(entry["degree"]))
+        _check_polynomial(coef, dim, g, f"{where}.coefficients", source)
+        _check_normalization(entry.get("normalization"), dim, f"{where}.normalization", source)
+    return data
+
+
+def read_result_json(path: str | os.PathLike) -> dict:
+    """The JSON object of a result file (not yet validated), or a :class:`~ipfit.ReadError`."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ReadError(f"{path}: no such file. Check the path.") from None
+    except IsADirectoryError:
+        raise ReadError(f"{path}: is a folder, not a result file. Pass the .json written by ipfit fit.") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ReadError(f"{path}: cannot be read ({exc.__class__.__name__}). Check the file.") from None
+    return parse_result_text(text, str(path), ReadError)
+
+
+def parse_result_text(text: str, source: str, kind: type[InvalidInputError] = InvalidInputError) -> dict:
+    """The JSON object in ``text`` (not yet validated); ``kind`` is the error type raised."""
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise kind(f"{source}: not valid JSON ({exc.msg} at line {exc.lineno}). Pass a result written by ipfit.") \
+            from None
+    except RecursionError:
+        raise kind(f"{source}: JSON nested too deeply. Pass a result written by ipfit.") from None
+    if not isinstance(data, dict):
+        raise kind(f"{source}: not an ipfit result (a JSON object was expected, got {_got(data)}). "
+                   "Pass a result written by ipfit.")
+    return data
+
+
+# -- documentation ---------------------------------------------------------------------------
+
+def schema_markdown() -> str:
+    """The schema table of ``docs/result-format.md`` (Markdown), generated from :data:`SCHEMA`."""
+    lines = ["| key | type | required | meaning |", "|---|---|---|---|"]
+    for key in SCHEMA:
+        required = "yes" if key.required else ""
+        if key.required and "." in key.path:
+            required = "yes, when its parent is present"
+        cells = (f"`{key.path}`", _TYPES[key.type].text, required, key.meaning)
+        lines.append("| " + " | ".join(c.replace("|", "\\|") for c in cells) + " |")
+    return "\n".join(lines) + "\n"
