@@ -109,6 +109,11 @@ _QUALITY = (
     ("zero_set_to_data", "number", "mean distance from the zero set to the data"),
     ("grid_step", "number", "step of the extraction grid"),
     ("reference", "string", 'what precision was measured against: "faces", "contour" or "points"'),
+    ("spurious", "list of objects", "one entry per spurious component"),
+    ("spurious[].size", "number", "its length (2D) or area (3D), user units"),
+    ("spurious[].share", "number", "its share of the zero set's total size"),
+    ("spurious[].center", "numbers", "its mean position, user units"),
+    ("spurious[].distance", "number", "its nearest approach to the data, user units"),
 )
 
 
@@ -144,6 +149,18 @@ SCHEMA: tuple[Key, ...] = (
     _k("degrees[].coefficients", "numbers", "its polynomial, C(degree + dim, dim) values in graded order"),
     _k("degrees[].method", "string", "the fit used at that degree"),
     *_normalization("degrees[].normalization", "its own normalisation; absent means the top-level one"),
+    _k("degrees[].nit", "integer >= 0", "iterations (generations) of the fixed-degree method; 0 for a linear fit"),
+    _k("degrees[].nfev", "integer >= 0", "objective evaluations at that degree"),
+    _k("degrees[].success", "boolean", "the method reached a finite fit"),
+    _k("degrees[].message", "string", "how the method ended (each stage)"),
+    _k("degrees[].reason", "string", "why the degree was selected, rejected or not needed, in one line"),
+    _k("degrees[].cleanup", "list of objects", "refits with stronger far-field terms of a degree that was not clean"),
+    _k("degrees[].cleanup[].far_term_weight", "number", "the far-field term weight of that refit"),
+    _k("degrees[].cleanup[].clean", "boolean", "the refit's zero set is clean"),
+    _k("degrees[].cleanup[].f_score", "number", "its F-score"),
+    _k("degrees[].cleanup[].n_spurious", "integer >= 0", "its spurious components"),
+    _k("degrees[].cleanup[].closed", "boolean", "its zero set closes inside the box"),
+    _k("degrees[].cleanup[].seconds", "number", "time of the refit"),
     _k("degrees[].quality", "object", "geometric quality of that degree, keys as in quality"),
     *(_k(f"degrees[].quality.{name}", t, m) for name, t, m in _QUALITY),
     _k("adaptive", "object", "settings and outcome of the degree search"),
@@ -154,6 +171,11 @@ SCHEMA: tuple[Key, ...] = (
     _k("adaptive.rule", "string", '"geometric" or "paper"'),
     _k("adaptive.far_weight", "number", "weight of the far-field term"),
     _k("adaptive.seconds", "number", "total time"),
+    _k("adaptive.success", "boolean", "a degree was selected on a complete run (false when interrupted, or when "
+       "the geometric rule found no clean degree)"),
+    _k("adaptive.message", "string", "which degree was selected and why"),
+    _k("adaptive.options", "object", "the search settings (ipfit.SearchOptions) of a refinement method; null for a "
+       "linear fit"),
     _k("quality", "object", "geometric quality of the final polynomial (ipfit score --write)"),
     *(_k(f"quality.{name}", t, m) for name, t, m in _QUALITY),
     _k("input", "object", "the data that was fitted"),

@@ -219,8 +219,9 @@ class AdaptiveResult:
         out["degrees"] = [d.to_dict() for d in self.degrees]
         out["adaptive"] = {"epsilon": self.epsilon, "delta": self.delta, "method": self.method,
                            "reason": self.reason, "rule": self.rule, "far_weight": self.far_term_weight,
-                           "seconds": self.seconds, "success": self.success, "message": self.message,
-                           "options": self.options.to_dict() if self.options is not None else None}
+                           "seconds": self.seconds, "success": self.success, "message": self.message}
+        if self.options is not None:
+            out["adaptive"]["options"] = self.options.to_dict()
         chosen = self.at_degree(self.selected_degree)
         if chosen.quality is not None:
             out["quality"] = chosen.quality.to_dict()
