@@ -38,7 +38,7 @@ from ._validation import (as_normals, as_points, check_choice, check_degree, che
 from .farfield import FarFieldTerm
 from .objective import Measures, Objective, single_threaded_blas
 from .optimize import DifferentialEvolution, OptimizeResult, ParticleSwarm, polish as lbfgs
-from .options import (DEFAULT_DELTA, DEFAULT_METHOD, RECOMMENDED, REFINE_METHODS, SearchOptions, into_keyword,
+from .options import (DEFAULT_DELTA, DEFAULT_METHOD, RECOMMENDED, REFINE_METHODS, SearchOptions,
                       into_options, renamed_keywords)
 from .polynomial import ImplicitPolynomial, Normalization
 from .sampling import spread_subsample
