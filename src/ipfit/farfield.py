@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
 from . import basis
-from ._validation import check_nonnegative, check_positive
+from ._validation import check_nonnegative, check_positive, error
 
 __all__ = ["far_field_samples", "term_samples", "term_sample_count", "FarFieldTerm", "DEFAULT_MARGIN", "DEFAULT_CLEARANCE", "DEFAULT_RATIO",
            "DEFAULT_TERM_WEIGHT"]
@@ -244,3 +244,20 @@ class FarFieldTerm:
         grad = self._m.T @ coef_f
         basis.add_gradient_adjoint(grad, low.T @ coef_g, self.degree)
         return float(value), self.weight * grad / len(f)
+
+
+def fused_rows(terms, dim: int, degree: int, dtype) -> tuple[NDArray, NDArray, NDArray] | None:
+    """The rows that the far-field terms among ``terms`` add to an objective's compiled pass.
+
+    Stacks :meth:`FarFieldTerm.rows` of every active term (design matrix in ``dtype``, k_i,
+    per-sample weights); ``None`` when there is none, so that weight 0 changes nothing.
+    """
+    far = [t for t in terms if isinstance(t, FarFieldTerm) and t.active]
+    for term in far:
+        if term.dim != dim or term.degree != degree:
+            raise error("terms", f"far-field terms of degree {degree} in {dim}D",
+                        f"degree {term.degree} in {term.dim}D", "Build the term for this objective.")
+    if not far:
+        return None
+    parts = [t.rows(dtype) for t in far]
+    return tuple(np.ascontiguousarray(np.concatenate(column)) for column in zip(*parts))

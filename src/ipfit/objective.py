@@ -50,7 +50,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from . import basis
 from ._validation import as_normals, as_points, check_degree, check_nonnegative, error
-from .farfield import FarFieldTerm
+from .farfield import FarFieldTerm, fused_rows
 from .polynomial import ImplicitPolynomial
 
 __all__ = ["Measures", "measures", "Objective", "ObjectiveTerm", "TAUBIN_CAP", "DEFAULT_DELTA",
@@ -70,6 +70,9 @@ _GRAD_FLOOR = 1e-100
 # in L2/L3 between the BLAS call and the reduction, while blocks stay tall enough for BLAS.
 _BLOCK_BYTES = 4 << 20
 _MIN_ROWS, _MAX_ROWS = 256, 4096
+# Below this many multiply-adds per evaluation (about a millisecond) the worker threads' hand-off
+# costs more than it saves: small evaluations run on the calling thread.
+_THREAD_WORK = 4_000_000
 #: Design matrices up to this size (bytes) are kept between evaluations; bigger ones are
 #: rebuilt block by block on every evaluation (from the power table: a few percent of a pass).
 CACHE_BYTES = 256 << 20
@@ -185,7 +188,8 @@ class Objective:
     r"""The paper's distance (Eq. 5) on fixed data, for whole populations of coefficients.
 
     Build it once per (points, normals, degree, δ, dtype); the monomial matrix is computed
-    once and reused by every evaluation.
+    once and reused by every evaluation while it fits in :data:`CACHE_BYTES`, and otherwise
+    rebuilt block by block (bounded memory for any number of points).
 
     Parameters
     ----------
@@ -206,11 +210,14 @@ class Objective:
         :meth:`value_and_grad` always works in float64.
     terms : sequence of :class:`ObjectiveTerm`
         Extra terms added to the distance in :meth:`__call__` and :meth:`value_and_grad`;
-        empty (default) gives exactly the paper's objective.
+        empty (default) gives exactly the paper's objective, and so does a
+        :class:`~ipfit.farfield.FarFieldTerm` of weight 0. Far-field terms (same degree) are
+        evaluated as extra rows of the compiled pass; :meth:`measures` never includes terms.
     threads : int, optional
         Worker threads for population evaluation (default: the usable cores); used only when
-        :mod:`threadpoolctl` is installed and there are at least two blocks of points. Results
-        are reproducible for a given value (fixed partition, fixed summation order).
+        :mod:`threadpoolctl` is installed and an evaluation spans several blocks and about a
+        millisecond of work. Results are reproducible for a given value (fixed partition,
+        fixed summation order).
 
     Examples
     --------
@@ -251,23 +258,12 @@ class Objective:
         cached = self.n_points * self.n_coefficients * self.dtype.itemsize <= CACHE_BYTES
         self._m = basis.monomials(pts, self._exps).astype(self.dtype, copy=False) if cached else None
         self._normals = np.ascontiguousarray(self.normals64, dtype=self.dtype)
-        self._far = self._far_rows()
+        self._far = fused_rows(self.terms, self.dim, self.degree, self.dtype)
         # Terms outside the compiled pass; a far-field term of weight 0 is dropped altogether,
         # so that the objective is then the paper's, bit for bit.
         self._extra = tuple(t for t in self.terms if not isinstance(t, FarFieldTerm))
         self._with_grad = self._extra + tuple(t for t in self.terms if isinstance(t, FarFieldTerm) and t.active)
         self._whitening = None
-
-    def _far_rows(self):
-        far = [t for t in self.terms if isinstance(t, FarFieldTerm) and t.active]
-        for term in far:
-            if term.dim != self.dim or term.degree != self.degree:
-                raise error("terms", f"far-field terms of degree {self.degree} in {self.dim}D",
-                            f"degree {term.degree} in {term.dim}D", "Build the term for this objective.")
-        if not far:
-            return None
-        parts = [t.rows(self.dtype) for t in far]
-        return tuple(np.ascontiguousarray(np.concatenate(column)) for column in zip(*parts))
 
     # -- construction from raw data ---------------------------------------------------------
     @classmethod
@@ -325,7 +321,8 @@ class Objective:
         if far and self._far is not None:
             jobs += [(True, lo, hi) for lo, hi in basis.point_blocks(len(self._far[0]), rows)]
         workers = min(self.threads, len(jobs)) if _controller() is not None else 1
-        if workers == 1:
+        n_rows = sum(hi - lo for _, lo, hi in jobs)
+        if workers == 1 or n_rows * n_members * (self.n_coefficients + self.dim * self.n_lower) < _THREAD_WORK:
             return self._partial_sums(at, bt, jobs, rows)
         # Contiguous runs of whole blocks per worker, summed in a fixed order: reproducible.
         cuts = [len(jobs) * k // workers for k in range(workers + 1)]
