@@ -104,22 +104,28 @@ def test_refine_with_far_field_reports_both_values():
 def test_term_samples_follow_the_count_rule_keep_clear_and_spread_evenly():
     from scipy.spatial import cKDTree
 
-    from ipfit.farfield import term_sample_count, term_samples
+    from ipfit.farfield import SPREAD_OFFSET, term_sample_count, term_samples
 
-    shape = synthetic.circle(600)
+    shape = synthetic.circle(120)
     samples, targets = term_samples(shape.points, shape.normals, c=0.05)
-    assert len(samples) == term_sample_count(600, 2) == 200
+    assert len(samples) == term_sample_count(120, 2) == 240
     assert term_sample_count(10, 2) == 48 and term_sample_count(10**6, 3) == 768  # floor and cap
     dist, _ = cKDTree(shape.points).query(samples)
     np.testing.assert_allclose(np.abs(targets), dist)
     assert dist.min() > 3 * 0.05
-    # Farthest-point selection: no two samples closer than the largest hole left among the
-    # candidates (every candidate was at least that far from the earlier picks when chosen).
-    candidates, _ = far_field_samples(shape.points, shape.normals, c=0.05, per_axis=96)
-    hole = cKDTree(samples).query(candidates)[0].max()
-    pairwise = cKDTree(samples).query(samples, k=2)[0][:, 1]
-    assert pairwise.min() >= hole > 0
-    assert hole < 0.35  # 200 samples in a 3.2 × 3.2 box minus the ring around the circle
+    # Farthest-point selection in the relative metric |x − s| / reach(x), reach = distance +
+    # offset: when a sample was picked, every earlier one was at least (final largest hole) ×
+    # its reach away, so any two samples are at least that × the smaller of their reaches apart.
+    candidates, cand_targets = far_field_samples(shape.points, shape.normals, c=0.05, per_axis=96)
+    hole = (cKDTree(samples).query(candidates)[0] / (np.abs(cand_targets) + SPREAD_OFFSET)).max()
+    assert 0 < hole < 0.5  # the unit circle's mean radius is 1
+    reach = np.abs(targets) + SPREAD_OFFSET
+    apart = np.linalg.norm(samples[:, None] - samples[None], axis=-1) / np.minimum(reach[:, None], reach[None])
+    np.fill_diagonal(apart, np.inf)
+    assert apart.min() >= hole * (1 - 1e-12)
+    # denser near the data: more samples in the inner half of the distance range
+    near = np.abs(targets) < np.median(np.abs(cand_targets))
+    assert near.mean() > 0.5
 
 
 def test_objective_evaluates_the_term_in_its_own_pass(rng):

@@ -42,9 +42,13 @@ DEFAULT_RATIO = 1.0 / 8.0
 #: that the chosen samples sit close to where they are wanted (the grid only proposes places;
 #: :func:`term_samples` keeps a few hundred of them).
 TERM_GRID = {2: 96, 3: 28}
-#: Bounds of the number of term samples (see :func:`term_sample_count`).
+#: Term samples per data point, and their bounds (see :func:`term_sample_count`).
+TERM_SAMPLES_PER_POINT = {2: 2.0, 3: 1.0 / 3.0}
 TERM_SAMPLES_MIN = {2: 48, 3: 96}
 TERM_SAMPLES_MAX = {2: 512, 3: 768}
+#: Spacing of the term samples grows like (distance to the data + this × the data's mean
+#: radius): denser near the data, where the spurious loops of real fits sit.
+SPREAD_OFFSET = 0.3
 # Squared-gradient floor, as in the data objective: below it ∇f counts as zero.
 _TINY = float(np.finfo(np.float64).tiny)
 #: Recommended weight of the term in the objective (its values lie in [0, 2]; the paper's
@@ -99,33 +103,38 @@ def far_field_samples(u: NDArray[np.float64], normals: NDArray[np.float64], *, c
 def term_sample_count(n_points: int, dim: int) -> int:
     """Number of samples of the objective's far-field term for ``n_points`` data points.
 
-    One sample per three data points, within [:data:`TERM_SAMPLES_MIN`,
-    :data:`TERM_SAMPLES_MAX`]. A sample costs what a data point costs in the fused pass, so a
-    third keeps the term near a quarter of the objective's time (M/(N+M) = 1/4), under the
-    30 % budget of issue 15; the floor keeps a few samples per side of the box on tiny clouds
-    (where the whole search is cheap anyway), and the cap bounds the cost on big ones, where a
-    few hundred well-spread samples already see every sheet large enough to matter.
+    :data:`TERM_SAMPLES_PER_POINT` per data point (2 in 2D, 1/3 in 3D), within
+    [:data:`TERM_SAMPLES_MIN`, :data:`TERM_SAMPLES_MAX`]. A sample costs what a data point
+    costs in the fused pass. In 3D a third keeps the term near a quarter of the objective's
+    time (M/(N+M) = 1/4, the 30 % budget of issue 15); 3D sheets are large and a few hundred
+    samples see them. In 2D small loops hug the data and the search finds the gaps between
+    samples: on the airplane contour (200 points) at degree 10, N/3, N/2 and N samples left
+    1-4 spurious loops in DE + polish runs where 2N (400) left none, as the old 3,000-node grid
+    did. 2D clouds are small, so the cap (512, reached from 256 points) is below 30 % from
+    about 1,200 points on; below that the term costs more than the data, but the whole
+    search is then cheap.
 
-    >>> term_sample_count(200, 2), term_sample_count(1354, 2), term_sample_count(35947, 3)
-    (67, 452, 768)
+    >>> term_sample_count(200, 2), term_sample_count(1354, 2), term_sample_count(867, 3)
+    (400, 512, 289)
     """
-    return int(min(max(-(-int(n_points) // 3), TERM_SAMPLES_MIN[dim]), TERM_SAMPLES_MAX[dim]))
+    count = np.ceil(TERM_SAMPLES_PER_POINT[dim] * int(n_points))
+    return int(min(max(count, TERM_SAMPLES_MIN[dim]), TERM_SAMPLES_MAX[dim]))
 
 
-def _spread(candidates: NDArray[np.float64], count: int) -> NDArray[np.int64]:
-    # Farthest-point selection: each new sample is the candidate farthest from those chosen, so
-    # the samples stratify the free part of the box evenly (no two crowd while a region is
-    # empty) and are deterministic. Uniform spacing was measured to catch more small loops
-    # than spacing that grows with the distance to the data (random loops of radius 0.15-0.2
-    # around a unit circle with 100 samples: 90-99 % against 25-50 %).
+def _spread(candidates: NDArray[np.float64], reach: NDArray[np.float64], count: int) -> NDArray[np.int64]:
+    # Farthest-point selection with gaps measured relative to ``reach``: every candidate ends
+    # up within (final ratio) × its reach of a chosen sample, no two samples crowd while a
+    # region is empty, and nothing is random. With reach = distance to the data + an offset,
+    # the samples are denser near the data but never absent far from it (reach = distance
+    # alone put nearly all of them in the band just outside the clearance).
     if count >= len(candidates):
         return np.arange(len(candidates))
     chosen = np.empty(count, dtype=np.int64)
     gap = np.full(len(candidates), np.inf)
-    pick = 0
+    pick = int(np.argmin(reach))
     for j in range(count):
         chosen[j] = pick
-        np.minimum(gap, np.linalg.norm(candidates - candidates[pick], axis=1), out=gap)
+        np.minimum(gap, np.linalg.norm(candidates - candidates[pick], axis=1) / reach, out=gap)
         pick = int(np.argmax(gap))
     return np.sort(chosen)
 
@@ -137,21 +146,23 @@ def term_samples(u: NDArray[np.float64], normals: NDArray[np.float64], *, count:
     Candidates are the nodes of :func:`far_field_samples` (``per_axis`` along the longest side,
     default :data:`TERM_GRID`) in the data's box plus its margin, where the zero set is judged;
     those within the clearance of the data (a kd-tree distance) are already gone: there the
-    data speak. Of these, ``count`` (default :func:`term_sample_count`) are kept by
-    farthest-point selection, a deterministic stratification of the free space. Other keywords
-    go to :func:`far_field_samples`.
+    data speak. Of these, ``count`` (default :func:`term_sample_count`) are kept by a
+    farthest-point selection whose spacing grows with the distance to the data plus
+    :data:`SPREAD_OFFSET` × the data's mean radius: a deterministic stratification of the free
+    space, densest where spurious loops were seen. Other keywords go to :func:`far_field_samples`.
 
     Examples
     --------
     >>> from ipfit.datasets.synthetic import circle
-    >>> shape = circle(300)
+    >>> shape = circle(100)
     >>> samples, targets = term_samples(shape.points, shape.normals)
     >>> len(samples), bool(np.all(np.abs(targets) > 0.15))
-    (100, True)
+    (200, True)
     """
     dim = u.shape[1]
     candidates, targets = far_field_samples(u, normals, per_axis=per_axis or TERM_GRID[dim], **kwargs)
-    keep = _spread(candidates, term_sample_count(len(u), dim) if count is None else int(count))
+    radius = float(np.linalg.norm(u - u.mean(axis=0), axis=1).mean())
+    keep = _spread(candidates, np.abs(targets) + SPREAD_OFFSET * radius, term_sample_count(len(u), dim) if count is None else int(count))
     return candidates[keep], targets[keep]
 
 
