@@ -43,7 +43,7 @@ DEFAULT_RATIO = 1.0 / 8.0
 #: :func:`term_samples` keeps a few hundred of them).
 TERM_GRID = {2: 96, 3: 28}
 #: Term samples per data point, and their bounds (see :func:`term_sample_count`).
-TERM_SAMPLES_PER_POINT = {2: 2.0, 3: 1.0 / 3.0}
+TERM_SAMPLES_PER_POINT = {2: 2.0, 3: 1.0}
 TERM_SAMPLES_MIN = {2: 48, 3: 96}
 TERM_SAMPLES_MAX = {2: 512, 3: 768}
 #: Spacing of the term samples grows like (distance to the data + this × the data's mean
@@ -103,19 +103,20 @@ def far_field_samples(u: NDArray[np.float64], normals: NDArray[np.float64], *, c
 def term_sample_count(n_points: int, dim: int) -> int:
     """Number of samples of the objective's far-field term for ``n_points`` data points.
 
-    :data:`TERM_SAMPLES_PER_POINT` per data point (2 in 2D, 1/3 in 3D), within
-    [:data:`TERM_SAMPLES_MIN`, :data:`TERM_SAMPLES_MAX`]. A sample costs what a data point
-    costs in the fused pass. In 3D a third keeps the term near a quarter of the objective's
-    time (M/(N+M) = 1/4, the 30 % budget of issue 15); 3D sheets are large and a few hundred
-    samples see them. In 2D small loops hug the data and the search finds the gaps between
-    samples: on the airplane contour (200 points) at degree 10, N/3, N/2 and N samples left
-    1-4 spurious loops in DE + polish runs where 2N (400) left none, as the old 3,000-node grid
-    did. 2D clouds are small, so the cap (512, reached from 256 points) is below 30 % from
-    about 1,200 points on; below that the term costs more than the data, but the whole
-    search is then cheap.
+    :data:`TERM_SAMPLES_PER_POINT` per data point (2 in 2D, 1 in 3D), within
+    [:data:`TERM_SAMPLES_MIN`, :data:`TERM_SAMPLES_MAX`] (48-512 in 2D, 96-768 in 3D).
+
+    Why: a sample costs what a data point costs in the fused pass, so the term's share of
+    the objective time is M/(N + M); the cap keeps it at or under 30 % from 1,200 points (2D)
+    and 1,800 points (3D) on. Fewer samples per point were measured to let the search grow
+    loops in the gaps between them (DE + polish, weight 0.1): on the airplane contour (200
+    points) at degree 10, N/3, N/2 and N samples left 1-4 spurious loops where 2N left none;
+    on the apple (867 points) at degree 8, N/3 samples left 2 spurious sheets where N left
+    none, as the old grids (3,064 and 2,160 nodes) did. So on small clouds the term costs
+    more than the data, but the whole search is then cheap.
 
     >>> term_sample_count(200, 2), term_sample_count(1354, 2), term_sample_count(867, 3)
-    (400, 512, 289)
+    (400, 512, 768)
     """
     count = np.ceil(TERM_SAMPLES_PER_POINT[dim] * int(n_points))
     return int(min(max(count, TERM_SAMPLES_MIN[dim]), TERM_SAMPLES_MAX[dim]))
