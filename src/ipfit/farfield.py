@@ -9,8 +9,8 @@ carry their signed distance to the data (sign from the nearest point's normal):
   :func:`ipfit.fit_gradient_one`);
 * the metaheuristics and the polish add :class:`FarFieldTerm` to the objective: a penalty
   where f has the wrong sign, or where the zero set comes close to a sample (its Taubin
-  distance is a small fraction of the sample's distance to the data). The term uses a few
-  hundred samples chosen once per fit (:func:`term_samples`), and
+  distance is a small fraction of the sample's distance to the data). The term uses at most
+  a few hundred samples chosen once per fit (:func:`term_samples`), and
   :class:`~ipfit.objective.Objective` evaluates them in the same compiled pass as the data,
   so the term costs about as much as that many extra data points.
 """
@@ -24,8 +24,8 @@ from scipy.spatial import cKDTree
 from . import basis
 from ._validation import check_nonnegative, check_positive, error
 
-__all__ = ["far_field_samples", "term_samples", "term_sample_count", "FarFieldTerm", "DEFAULT_MARGIN", "DEFAULT_CLEARANCE", "DEFAULT_RATIO",
-           "DEFAULT_TERM_WEIGHT"]
+__all__ = ["far_field_samples", "term_samples", "term_sample_count", "fused_rows", "FarFieldTerm", "DEFAULT_MARGIN",
+           "DEFAULT_CLEARANCE", "DEFAULT_RATIO", "DEFAULT_TERM_WEIGHT"]
 
 #: The sampled box is the data's box grown by this × its longest side: a little more than the
 #: box in which zero sets are extracted and judged (0.25), so every part of that box is seen.
