@@ -68,23 +68,14 @@ def reduce_far_field(values, grads, scale, weight, tiny, sum_far):  # pragma: no
     over its number of samples). Squared norms are clamped below by ``tiny``.
     """
     n, P = values.shape
-    # As in reduce_population: one loop per dimension, so that each vectorises.
-    if grads.shape[1] == 3 * P:
-        for i in range(n):
-            k = scale[i]
-            w = weight[i]
-            for p in range(P):
-                gx = np.float64(grads[i, p])
-                gy = np.float64(grads[i, P + p])
-                gz = np.float64(grads[i, 2 * P + p])
-                short = 1.0 - k * np.float64(values[i, p]) / np.sqrt(max(gx * gx + gy * gy + gz * gz, tiny))
-                sum_far[p] += w * min(max(short, 0.0), 2.0)
-    else:
-        for i in range(n):
-            k = scale[i]
-            w = weight[i]
-            for p in range(P):
-                gx = np.float64(grads[i, p])
-                gy = np.float64(grads[i, P + p])
-                short = 1.0 - k * np.float64(values[i, p]) / np.sqrt(max(gx * gx + gy * gy, tiny))
-                sum_far[p] += w * min(max(short, 0.0), 2.0)
+    z = 2 * P if grads.shape[1] == 3 * P else -1  # column offset of ∂f/∂z, or none (2D)
+    for i in range(n):
+        k = scale[i]
+        w = weight[i]
+        for p in range(P):
+            gx = np.float64(grads[i, p])
+            gy = np.float64(grads[i, P + p])
+            # A loop-invariant branch: LLVM unswitches it, so both versions vectorise.
+            gz = np.float64(grads[i, z + p]) if z >= 0 else 0.0
+            short = 1.0 - k * np.float64(values[i, p]) / np.sqrt(max(gx * gx + gy * gy + gz * gz, tiny))
+            sum_far[p] += w * min(max(short, 0.0), 2.0)
