@@ -99,3 +99,63 @@ def test_refine_with_far_field_reports_both_values():
     assert far.fun >= far.distance  # the term is non-negative and reported separately
     assert far.info["far_weight"] == 0.1 and "3l-far" in far.seed_distances
     np.testing.assert_array_equal(far.x, far.polynomial.coefficients)
+
+
+def test_term_samples_follow_the_count_rule_keep_clear_and_spread_evenly():
+    from scipy.spatial import cKDTree
+
+    from ipfit.farfield import SPREAD_OFFSET, term_sample_count, term_samples
+
+    shape = synthetic.circle(120)
+    samples, targets = term_samples(shape.points, shape.normals, c=0.05)
+    assert len(samples) == term_sample_count(120, 2) == 240
+    assert term_sample_count(10, 2) == 48 and term_sample_count(10**6, 3) == 768  # floor and cap
+    dist, _ = cKDTree(shape.points).query(samples)
+    np.testing.assert_allclose(np.abs(targets), dist)
+    assert dist.min() > 3 * 0.05
+    # Farthest-point selection in the relative metric |x − s| / reach(x), reach = distance +
+    # offset: when a sample was picked, every earlier one was at least (final largest hole) ×
+    # its reach away, so any two samples are at least that × the smaller of their reaches apart.
+    candidates, cand_targets = far_field_samples(shape.points, shape.normals, c=0.05, per_axis=96)
+    hole = (cKDTree(samples).query(candidates)[0] / (np.abs(cand_targets) + SPREAD_OFFSET)).max()
+    assert 0 < hole < 0.5  # the unit circle's mean radius is 1
+    reach = np.abs(targets) + SPREAD_OFFSET
+    apart = np.linalg.norm(samples[:, None] - samples[None], axis=-1) / np.minimum(reach[:, None], reach[None])
+    np.fill_diagonal(apart, np.inf)
+    assert apart.min() >= hole * (1 - 1e-12)
+    # denser near the data: more samples in the inner half of the distance range
+    near = np.abs(targets) < np.median(np.abs(cand_targets))
+    assert near.mean() > 0.5
+
+
+def test_objective_evaluates_the_term_in_its_own_pass(rng):
+    shape = synthetic.torus(300, rng=rng)
+    term = FarFieldTerm.from_data(shape.points, shape.normals, 4, weight=0.3)
+    plain = Objective(shape.points, shape.normals, 4)
+    fused = Objective(shape.points, shape.normals, 4, terms=[term])
+    pop = shape.polynomial.coefficients + 0.2 * rng.normal(size=(12, 35))
+    np.testing.assert_allclose(fused(pop), plain(pop) + term(pop), rtol=1e-12)
+    assert np.all(term(pop) > 0) and np.any(term(pop) != term(pop)[0])
+    # the measures stay the paper's: the term's samples are not data
+    np.testing.assert_array_equal(fused.measures(pop).distance, plain.measures(pop).distance)
+    fused32 = Objective(shape.points, shape.normals, 4, terms=[term], dtype=np.float32)
+    np.testing.assert_allclose(fused32(pop), fused(pop), rtol=1e-4)
+    with pytest.raises(ipfit.InvalidInputError, match="terms: expected far-field terms of degree 4"):
+        Objective(shape.points, shape.normals, 4, terms=[FarFieldTerm.from_data(shape.points, shape.normals, 2, 1.0)])
+
+
+@pytest.mark.parametrize("dim,degree", [(2, 6), (3, 4)])
+def test_gradient_of_the_fused_objective_matches_finite_differences(dim, degree, rng):
+    shape = synthetic.ellipse(150) if dim == 2 else synthetic.torus(300, rng=rng)
+    fit = ipfit.fit_3l(shape.points, shape.normals, degree)
+    u = fit.normalization.apply(shape.points)  # the fit's coefficients live in these coordinates
+    term = FarFieldTerm.from_data(u, shape.normals, degree, weight=0.5)
+    obj = Objective(u, shape.normals, degree, terms=[term])
+    a = fit.coefficients + 0.05 * rng.normal(size=obj.n_coefficients)
+    assert 0 < term(a)[0] < 0.5 * 2  # live, but not everywhere saturated
+    value, grad = obj.value_and_grad(a)
+    assert value == pytest.approx(obj(a)[0], rel=1e-12)
+    h = 1e-6
+    eye = np.eye(a.size)
+    fd = (obj(a + h * eye) - obj(a - h * eye)) / (2 * h)
+    np.testing.assert_allclose(grad, fd, rtol=1e-5, atol=1e-6 * np.abs(fd).max())

@@ -251,3 +251,44 @@ def test_from_data_normalises_like_the_linear_fits(rng):
     norm = Normalization.from_points(shape.points * 7)
     np.testing.assert_allclose(obj.u, norm.apply(shape.points * 7))
     assert obj.normalization.scale == pytest.approx(norm.scale)
+
+
+def test_uncached_blocks_give_the_cached_results(rng, monkeypatch):
+    shape = synthetic.torus(1500, rng=rng)
+    population = shape.polynomial.coefficients + 0.1 * rng.normal(size=(6, 35))
+    cached = Objective(shape.points, shape.normals, 4)
+    value, grad = cached.value_and_grad(population[0])
+    monkeypatch.setattr(objective_module, "CACHE_BYTES", 0)
+    monkeypatch.setattr(objective_module, "_SINGLE_ROWS", 97)  # ragged blocks in the gradient pass too
+    rebuilt = Objective(shape.points, shape.normals, 4)
+    assert rebuilt._m is None
+    np.testing.assert_allclose(rebuilt(population), cached(population), rtol=1e-13)
+    v2, g2 = rebuilt.value_and_grad(population[0])
+    assert v2 == pytest.approx(value, rel=1e-13)
+    np.testing.assert_allclose(g2, grad, rtol=1e-10, atol=1e-13 * np.abs(grad).max())
+    np.testing.assert_allclose(rebuilt.whitening(), cached.whitening(), rtol=1e-10, atol=1e-12)
+
+
+@pytest.mark.slow
+def test_a_million_points_need_no_full_design_matrix(rng):
+    import tracemalloc
+
+    n, degree = 10**6, 6
+    d = basis.n_coefficients(3, degree)
+    shape = synthetic.sphere(n, rng=rng)
+    population = rng.normal(size=(8, d))
+    Objective(shape.points[:500], shape.normals[:500], degree)(population)  # load the kernels first
+    tracemalloc.start()
+    try:
+        obj = Objective(shape.points, shape.normals, degree, threads=1)
+        built = tracemalloc.get_traced_memory()[0]
+        tracemalloc.reset_peak()
+        obj(population)
+        value, grad = obj.value_and_grad(population[0])
+        peak = tracemalloc.get_traced_memory()[1] - built
+    finally:
+        tracemalloc.stop()
+    full = n * d * 8  # 672 MB: the matrix a plain implementation would hold
+    assert built < full / 4  # points and normals only
+    assert peak < full / 20
+    assert np.isfinite(value) and grad.shape == (d,)

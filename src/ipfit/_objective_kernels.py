@@ -57,3 +57,25 @@ def reduce_population(values, grads, normals, tiny, cap, sum_taubin, sum_cosine)
                 inv = 1.0 / np.sqrt(s)
                 sum_taubin[p] += min(abs(np.float64(values[i, p])) * inv, cap)
                 sum_cosine[p] += (gx * n0 + gy * n1) * inv
+
+
+@njit(**_JIT)
+def reduce_far_field(values, grads, scale, weight, tiny, sum_far):  # pragma: no cover - compiled
+    """Accumulate Σ_i w_i · clip(1 − k_i f/||∇f||, 0, 2) for every member p (the far-field term).
+
+    ``values`` (n, P) and ``grads`` (n, dim·P) are laid out as in :func:`reduce_population`;
+    ``scale`` (n,) is k_i = sign(t_i)/(ρ|t_i|) and ``weight`` (n,) is w_i (the term's weight
+    over its number of samples). Squared norms are clamped below by ``tiny``.
+    """
+    n, P = values.shape
+    z = 2 * P if grads.shape[1] == 3 * P else -1  # column offset of ∂f/∂z, or none (2D)
+    for i in range(n):
+        k = scale[i]
+        w = weight[i]
+        for p in range(P):
+            gx = np.float64(grads[i, p])
+            gy = np.float64(grads[i, P + p])
+            # A loop-invariant branch: LLVM unswitches it, so both versions vectorise.
+            gz = np.float64(grads[i, z + p]) if z >= 0 else 0.0
+            short = 1.0 - k * np.float64(values[i, p]) / np.sqrt(max(gx * gx + gy * gy + gz * gz, tiny))
+            sum_far[p] += w * min(max(short, 0.0), 2.0)

@@ -22,7 +22,12 @@ __all__ = [
     "monomials",
     "derivative_map",
     "derivative_maps",
+    "derivative_gather",
+    "gradient_coefficients",
+    "add_gradient_adjoint",
     "monomials_and_gradients",
+    "point_blocks",
+    "blocked_products",
 ]
 
 
@@ -102,21 +107,36 @@ def monomials(points: NDArray, exps: NDArray[np.int64], powers: NDArray | None =
 
 
 @lru_cache(maxsize=128)
-def _derivative_map(dim: int, degree: int, axis: int) -> sparse.csr_matrix:
-    high = exponents(dim, degree)
-    low = exponents(dim, max(degree - 1, 0))
-    index = {tuple(e): i for i, e in enumerate(low.tolist())}
-    rows, cols, vals = [], [], []
-    for k, e in enumerate(high.tolist()):
-        if e[axis] == 0:
-            continue
-        lowered = list(e)
-        lowered[axis] -= 1
-        rows.append(index[tuple(lowered)])
-        cols.append(k)
-        vals.append(float(e[axis]))
-    mat = sparse.csr_matrix((vals, (rows, cols)), shape=(len(low), len(high)))
-    return mat
+def _gather_tables(dim: int, degree: int) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    # ∂(x^α)/∂x_k = α_k x^(α − e_k): every degree-(g−1) monomial β is hit by exactly one
+    # monomial of degree <= g, β + e_k, with factor β_k + 1. So D_k has one entry per row.
+    high = {tuple(e): i for i, e in enumerate(exponents(dim, degree).tolist())}
+    low = exponents(dim, max(degree - 1, 0)).tolist() if degree > 0 else []
+    source = np.zeros((dim, len(low)), dtype=np.int64)
+    factor = np.zeros((dim, len(low)))
+    for k in range(dim):
+        for i, beta in enumerate(low):
+            raised = list(beta)
+            raised[k] += 1
+            source[k, i] = high[tuple(raised)]
+            factor[k, i] = raised[k]
+    source.setflags(write=False)
+    factor.setflags(write=False)
+    return source, factor
+
+
+def derivative_gather(dim: int, degree: int) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    """The derivative maps as gather tables ``source``, ``factor`` of shape (dim, d_{g−1}).
+
+    ``(D_k a)[i] = factor[k, i] * a[source[k, i]]``: the one copy of the derivative kernel,
+    used by :func:`gradient_coefficients` (gather), :func:`add_gradient_adjoint` (scatter)
+    and :func:`monomials_and_gradients`. The sources of one axis are distinct.
+
+    >>> source, factor = derivative_gather(2, 2)  # basis 1, x, y, x², xy, y²
+    >>> source.tolist(), factor.tolist()
+    ([[1, 3, 4], [2, 4, 5]], [[1.0, 2.0, 1.0], [1.0, 1.0, 2.0]])
+    """
+    return _gather_tables(int(dim), int(degree))
 
 
 def derivative_map(dim: int, degree: int, axis: int) -> sparse.csr_matrix:
@@ -125,12 +145,42 @@ def derivative_map(dim: int, degree: int, axis: int) -> sparse.csr_matrix:
     ``∂f/∂x_k (x) = m_{g-1}(x)ᵀ (D_k a)``, so gradients of many polynomials are products
     with the narrower degree-(g-1) design matrix.
     """
-    return _derivative_map(int(dim), int(degree), int(axis))
+    source, factor = derivative_gather(dim, degree)
+    n_low = source.shape[1]
+    return sparse.csr_matrix((factor[axis], source[axis], np.arange(n_low + 1)),
+                             shape=(n_low, n_coefficients(dim, degree)))
 
 
 def derivative_maps(dim: int, degree: int) -> tuple[sparse.csr_matrix, ...]:
     """All ``dim`` derivative maps of :func:`derivative_map`."""
     return tuple(derivative_map(dim, degree, k) for k in range(dim))
+
+
+def gradient_coefficients(at: NDArray, dim: int, degree: int) -> NDArray:
+    """Coefficients of ∂f/∂x_k for a population: (d, P) → (d_{g−1}, dim·P).
+
+    Axis k of member p is column ``k·P + p``, so ``L @ gradient_coefficients(Aᵀ)`` gives all
+    partial derivatives of all members in one product with the degree-(g−1) design matrix L.
+    Keeps the dtype of ``at``.
+    """
+    source, factor = derivative_gather(dim, degree)
+    n_members = at.shape[1]
+    out = np.empty((source.shape[1], dim * n_members), dtype=at.dtype)
+    for k in range(dim):
+        np.multiply(at[source[k]], factor[k][:, None].astype(at.dtype, copy=False),
+                    out=out[:, k * n_members:(k + 1) * n_members])
+    return out
+
+
+def add_gradient_adjoint(grad: NDArray[np.float64], low_t_w: NDArray[np.float64], degree: int) -> None:
+    """``grad += Σ_k D_kᵀ low_t_w[:, k]`` in place: the adjoint (scatter) of the gather.
+
+    ``low_t_w`` is (d_{g−1}, dim), typically Lᵀ W for per-point weights W on ∇f; the chain
+    rule through ∇f = L (D_k a) then lands on the coefficients.
+    """
+    source, factor = derivative_gather(low_t_w.shape[1], degree)
+    for k in range(low_t_w.shape[1]):
+        grad[source[k]] += factor[k] * low_t_w[:, k]  # distinct sources: no lost updates
 
 
 def monomials_and_gradients(points: NDArray, degree: int) -> tuple[NDArray, NDArray]:
@@ -142,23 +192,44 @@ def monomials_and_gradients(points: NDArray, degree: int) -> tuple[NDArray, NDAr
     exps = exponents(dim, degree)
     powers = power_table(points, degree)
     m = monomials(points, exps, powers)
-    low = monomials(points, exponents(dim, max(degree - 1, 0)), powers[:, :, : max(degree, 1)])
-    grads = np.empty((dim, *m.shape), dtype=m.dtype)
+    n_low = n_coefficients(dim, degree - 1) if degree > 0 else 0
+    grads = np.zeros((dim, *m.shape), dtype=m.dtype)
+    source, factor = derivative_gather(dim, degree)
     for k in range(dim):
-        source, factor = _derivative_gather(dim, degree, k)
-        np.multiply(low[:, source], factor, out=grads[k])
+        # The graded order puts every monomial of degree <= g−1 first: L is M's first columns.
+        grads[k][:, source[k]] = m[:, :n_low] * factor[k]
     return m, grads
 
 
-@lru_cache(maxsize=128)
-def _derivative_gather(dim: int, degree: int, axis: int) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
-    # ∂(x^α)/∂x_k = α_k x^(α - e_k): a column gather from the degree-(g-1) matrix, then a scale.
-    dmap = derivative_map(dim, degree, axis).tocsc()
-    source = np.zeros(dmap.shape[1], dtype=np.int64)
-    factor = np.zeros(dmap.shape[1])
-    for k in range(dmap.shape[1]):
-        start, stop = dmap.indptr[k], dmap.indptr[k + 1]
-        if stop > start:
-            source[k] = dmap.indices[start]
-            factor[k] = dmap.data[start]
-    return source, factor
+def point_blocks(n_points: int, rows: int):
+    """``(start, stop)`` of consecutive blocks of at most ``rows`` points.
+
+    >>> list(point_blocks(5, 2))
+    [(0, 2), (2, 4), (4, 5)]
+    """
+    for start in range(0, n_points, max(int(rows), 1)):
+        yield start, min(start + rows, n_points)
+
+
+def blocked_products(points: NDArray, degree: int, fn, rows: int = 1 << 15):
+    """Sum of ``fn(start, stop, M_block)`` over point blocks, never holding all of M.
+
+    For products such as MᵀW or MᵀM on clouds too big for the full N × d matrix: each block's
+    design matrix is built, used and dropped. ``fn`` returns an array (or a tuple of arrays).
+
+    >>> pts = np.array([[1.0, 2.0], [3.0, 4.0], [5.0, 6.0]])
+    >>> gram = blocked_products(pts, 1, lambda lo, hi, m: m.T @ m, rows=2)
+    >>> bool(np.allclose(gram, monomials(pts, exponents(2, 1)).T @ monomials(pts, exponents(2, 1))))
+    True
+    """
+    exps = exponents(points.shape[1], degree)
+    total = None
+    for start, stop in point_blocks(points.shape[0], rows):
+        part = fn(start, stop, monomials(points[start:stop], exps))
+        if total is None:
+            total = part
+        elif isinstance(part, tuple):
+            total = tuple(t + p for t, p in zip(total, part))
+        else:
+            total = total + part
+    return total

@@ -9,7 +9,10 @@ carry their signed distance to the data (sign from the nearest point's normal):
   :func:`ipfit.fit_gradient_one`);
 * the metaheuristics and the polish add :class:`FarFieldTerm` to the objective: a penalty
   where f has the wrong sign, or where the zero set comes close to a sample (its Taubin
-  distance is a small fraction of the sample's distance to the data).
+  distance is a small fraction of the sample's distance to the data). The term uses at most
+  a few hundred samples chosen once per fit (:func:`term_samples`), and
+  :class:`~ipfit.objective.Objective` evaluates them in the same compiled pass as the data,
+  so the term costs about as much as that many extra data points.
 """
 
 from __future__ import annotations
@@ -19,10 +22,10 @@ from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
 from . import basis
-from ._validation import check_nonnegative, check_positive
+from ._validation import check_nonnegative, check_positive, error
 
-__all__ = ["far_field_samples", "FarFieldTerm", "DEFAULT_MARGIN", "DEFAULT_CLEARANCE", "DEFAULT_RATIO",
-           "DEFAULT_TERM_WEIGHT"]
+__all__ = ["far_field_samples", "term_samples", "term_sample_count", "fused_rows", "FarFieldTerm", "DEFAULT_MARGIN",
+           "DEFAULT_CLEARANCE", "DEFAULT_RATIO", "DEFAULT_TERM_WEIGHT"]
 
 #: The sampled box is the data's box grown by this × its longest side: a little more than the
 #: box in which zero sets are extracted and judged (0.25), so every part of that box is seen.
@@ -35,11 +38,19 @@ DEFAULT_CLEARANCE = 3.0
 #: below 1/g for a clean fit not to be penalised: 1/8 suits the degrees up to 8 used here, and
 #: still sees small loops between grid nodes (1/16 missed one inside the boot at degree 8).
 DEFAULT_RATIO = 1.0 / 8.0
-#: Grid nodes along the longest side for the objective term: denser than the linear rows' grid
-#: (40 / 16), since a loop smaller than a grid cell can hide between nodes (64 in 2D still caught
-#: the loops inside the boot that 40 missed); 3D sheets are large, and the term costs M × d × P
-#: per generation, so the 3D grid stays coarse.
-TERM_GRID = {2: 64, 3: 14}
+#: Candidate grid nodes along the longest side for the objective term's samples: fine enough
+#: that the chosen samples sit close to where they are wanted (the grid only proposes places;
+#: :func:`term_samples` keeps a few hundred of them).
+TERM_GRID = {2: 96, 3: 28}
+#: Term samples per data point, and their bounds (see :func:`term_sample_count`).
+TERM_SAMPLES_PER_POINT = {2: 2.0, 3: 1.0}
+TERM_SAMPLES_MIN = {2: 48, 3: 96}
+TERM_SAMPLES_MAX = {2: 512, 3: 768}
+#: Spacing of the term samples grows like (distance to the data + this × the data's mean
+#: radius): denser near the data, where the spurious loops of real fits sit.
+SPREAD_OFFSET = 0.3
+# Squared-gradient floor, as in the data objective: below it ∇f counts as zero.
+_TINY = float(np.finfo(np.float64).tiny)
 #: Recommended weight of the term in the objective (its values lie in [0, 2]; the paper's
 #: distance of good fits is 0.005-0.2): 0.1 removed every spurious component of DE + polish
 #: on the bundled contours at degrees 4-8, where 0.01 left some.
@@ -89,6 +100,73 @@ def far_field_samples(u: NDArray[np.float64], normals: NDArray[np.float64], *, c
     return grid, np.where(side < 0, -dist, dist)
 
 
+def term_sample_count(n_points: int, dim: int) -> int:
+    """Number of samples of the objective's far-field term for ``n_points`` data points.
+
+    :data:`TERM_SAMPLES_PER_POINT` per data point (2 in 2D, 1 in 3D), within
+    [:data:`TERM_SAMPLES_MIN`, :data:`TERM_SAMPLES_MAX`] (48-512 in 2D, 96-768 in 3D).
+
+    Why: a sample costs what a data point costs in the fused pass, so the term's share of
+    the objective time is M/(N + M); the cap keeps it at or under 30 % from 1,200 points (2D)
+    and 1,800 points (3D) on. Fewer samples per point were measured to let the search grow
+    loops in the gaps between them (DE + polish, weight 0.1): on the airplane contour (200
+    points) at degree 10, N/3, N/2 and N samples left 1-4 spurious loops where 2N left none;
+    on the apple (867 points) at degree 8, N/3 samples left 2 spurious sheets where N left
+    none, as the old grids (3,064 and 2,160 nodes) did. So on small clouds the term costs
+    more than the data, but the whole search is then cheap.
+
+    >>> term_sample_count(200, 2), term_sample_count(1354, 2), term_sample_count(867, 3)
+    (400, 512, 768)
+    """
+    count = np.ceil(TERM_SAMPLES_PER_POINT[dim] * int(n_points))
+    return int(min(max(count, TERM_SAMPLES_MIN[dim]), TERM_SAMPLES_MAX[dim]))
+
+
+def _spread(candidates: NDArray[np.float64], reach: NDArray[np.float64], count: int) -> NDArray[np.int64]:
+    # Farthest-point selection with gaps measured relative to ``reach``: every candidate ends
+    # up within (final ratio) × its reach of a chosen sample, no two samples crowd while a
+    # region is empty, and nothing is random. With reach = distance to the data + an offset,
+    # the samples are denser near the data but never absent far from it (reach = distance
+    # alone put nearly all of them in the band just outside the clearance).
+    if count >= len(candidates):
+        return np.arange(len(candidates))
+    chosen = np.empty(count, dtype=np.int64)
+    gap = np.full(len(candidates), np.inf)
+    pick = int(np.argmin(reach))
+    for j in range(count):
+        chosen[j] = pick
+        np.minimum(gap, np.linalg.norm(candidates - candidates[pick], axis=1) / reach, out=gap)
+        pick = int(np.argmax(gap))
+    return np.sort(chosen)
+
+
+def term_samples(u: NDArray[np.float64], normals: NDArray[np.float64], *, count: int | None = None,
+                 per_axis: int | None = None, **kwargs) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The far-field term's samples: ``count`` nodes of a fine grid, evenly spread away from the data.
+
+    Candidates are the nodes of :func:`far_field_samples` (``per_axis`` along the longest side,
+    default :data:`TERM_GRID`) in the data's box plus its margin, where the zero set is judged;
+    those within the clearance of the data (a kd-tree distance) are already gone: there the
+    data speak. Of these, ``count`` (default :func:`term_sample_count`) are kept by a
+    farthest-point selection whose spacing grows with the distance to the data plus
+    :data:`SPREAD_OFFSET` × the data's mean radius: a deterministic stratification of the free
+    space, densest where spurious loops were seen. Other keywords go to :func:`far_field_samples`.
+
+    Examples
+    --------
+    >>> from ipfit.datasets.synthetic import circle
+    >>> shape = circle(100)
+    >>> samples, targets = term_samples(shape.points, shape.normals)
+    >>> len(samples), bool(np.all(np.abs(targets) > 0.15))
+    (200, True)
+    """
+    dim = u.shape[1]
+    candidates, targets = far_field_samples(u, normals, per_axis=per_axis or TERM_GRID[dim], **kwargs)
+    radius = float(np.linalg.norm(u - u.mean(axis=0), axis=1).mean())
+    keep = _spread(candidates, np.abs(targets) + SPREAD_OFFSET * radius, term_sample_count(len(u), dim) if count is None else int(count))
+    return candidates[keep], targets[keep]
+
+
 class FarFieldTerm:
     r"""Objective term penalising zero-set pieces away from the data.
 
@@ -101,9 +179,14 @@ class FarFieldTerm:
     invariant to positive scaling of the coefficients, like the paper's distance, and
     ``weight = 0`` leaves the paper's objective exactly.
 
+    Passed in ``terms`` to :class:`~ipfit.objective.Objective`, the samples join the data
+    rows of the objective's compiled pass (:meth:`rows`); on its own, :meth:`__call__` runs
+    the same kernel over the samples alone.
+
     Parameters
     ----------
-    samples, targets : from :func:`far_field_samples`, in the objective's coordinates.
+    samples, targets : from :func:`term_samples` (or :func:`far_field_samples`), in the
+        objective's coordinates.
     degree : polynomial degree of the coefficient vectors.
     weight : w.
     ratio : ρ (:data:`DEFAULT_RATIO`).
@@ -116,61 +199,54 @@ class FarFieldTerm:
         self.weight = check_nonnegative(weight, "far_weight")
         self.ratio = check_positive(ratio, "ratio")
         self.degree = degree
-        dim = self.samples.shape[1]
-        exps = basis.exponents(dim, degree)
-        self.n_lower = basis.n_coefficients(dim, degree - 1)
-        self.dim = dim
-        self._m = basis.monomials(self.samples, exps)
-        self._low = np.ascontiguousarray(self._m[:, : self.n_lower])
-        maps = basis.derivative_maps(dim, degree)
-        self._source = np.stack([dk.indices for dk in maps])
-        self._factor = np.stack([dk.data for dk in maps])
-        self._scale = 1.0 / (self.ratio * np.abs(self.targets))
-        self._sign = np.sign(self.targets)
+        self.dim = self.samples.shape[1]
+        self.n_lower = basis.n_coefficients(self.dim, degree - 1)
+        self._m = basis.monomials(self.samples, basis.exponents(self.dim, degree))
+        # k_i = sign(t_i)/(ρ|t_i|): the term is clip(1 − k_i f/||∇f||, 0, 2) per sample.
+        self._scale = np.sign(self.targets) / (self.ratio * np.abs(self.targets))
 
     @classmethod
     def from_data(cls, u: NDArray, normals: NDArray, degree: int, weight: float, *, ratio: float = DEFAULT_RATIO,
                   **kwargs) -> "FarFieldTerm":
-        """Build the term from the data (samples from :func:`far_field_samples`, on a denser grid)."""
-        kwargs.setdefault("per_axis", TERM_GRID[u.shape[1]])
-        samples, targets = far_field_samples(u, normals, **kwargs)
+        """Build the term from the data (samples from :func:`term_samples`; keywords go there)."""
+        samples, targets = term_samples(u, normals, **kwargs)
         return cls(samples, targets, degree, weight, ratio=ratio)
 
-    def _values_and_gradients(self, a: NDArray) -> tuple[NDArray, NDArray]:
-        """f (M, P) and ∇f (M, dim·P; axis k of member p in column k·P + p) at the samples."""
-        n_members = a.shape[0]
-        at = np.ascontiguousarray(a.T)
-        bt = np.empty((self.n_lower, self.dim * n_members))
-        for k in range(self.dim):
-            np.multiply(at[self._source[k]], self._factor[k][:, None], out=bt[:, k * n_members:(k + 1) * n_members])
-        return self._m @ at, self._low @ bt
+    @property
+    def active(self) -> bool:
+        """Whether the term can be non-zero (a positive weight and at least one sample)."""
+        return self.weight > 0 and len(self.samples) > 0
+
+    def rows(self, dtype=np.float64) -> tuple[NDArray, NDArray[np.float64], NDArray[np.float64]]:
+        """Design matrix (M, d) in ``dtype``, k_i (M,) and per-sample weights w/M (M,): what
+        the compiled pass needs to add the term's samples to the data rows."""
+        weights = np.full(len(self.samples), self.weight / max(len(self.samples), 1))
+        return self._m.astype(dtype, copy=False), self._scale, weights
 
     def __call__(self, population: NDArray[np.float64]) -> NDArray[np.float64]:
+        """(P, d) coefficients → (P,) values of the term."""
         a = np.atleast_2d(np.asarray(population, dtype=np.float64))
-        if self.weight == 0 or len(self.samples) == 0:
-            return np.zeros(a.shape[0])
-        n_members = a.shape[0]
-        f, grads = self._values_and_gradients(a)
-        grads *= grads
-        sq = grads[:, :n_members]
-        for k in range(1, self.dim):
-            sq += grads[:, k * n_members:(k + 1) * n_members]
-        np.maximum(sq, np.finfo(float).tiny, out=sq)
-        np.sqrt(sq, out=sq)
-        f /= sq
-        f *= -(self._sign * self._scale)[:, None]
-        f += 1.0
-        np.clip(f, 0.0, 2.0, out=f)
-        return self.weight * f.mean(axis=0)
+        total = np.zeros(a.shape[0])
+        if not self.active:
+            return total
+        from ._objective_kernels import reduce_far_field
+
+        at = np.ascontiguousarray(a.T)
+        grads = self._m[:, : self.n_lower] @ basis.gradient_coefficients(at, self.dim, self.degree)
+        m, scale, weights = self.rows()
+        reduce_far_field(m @ at, grads, scale, weights, _TINY, total)
+        return total
 
     def value_and_grad(self, coefficients: NDArray[np.float64]) -> tuple[float, NDArray[np.float64]]:
+        """Value and analytic gradient (d,) for one coefficient vector (for the polish)."""
         a = np.asarray(coefficients, dtype=np.float64)
-        if self.weight == 0 or len(self.samples) == 0:
+        if not self.active:
             return 0.0, np.zeros_like(a)
-        f, grads = self._values_and_gradients(a[None, :])
-        f, g = f[:, 0], grads  # (M,), (M, dim)
-        norm = np.sqrt(np.maximum(np.einsum("ij,ij->i", g, g), np.finfo(float).tiny))
-        k = self._sign * self._scale
+        low = self._m[:, : self.n_lower]
+        f = self._m @ a
+        g = low @ basis.gradient_coefficients(a[:, None], self.dim, self.degree)  # (M, dim)
+        norm = np.sqrt(np.maximum(np.einsum("ij,ij->i", g, g), _TINY))
+        k = self._scale
         shortfall = 1.0 - k * f / norm
         active = (shortfall > 0) & (shortfall < 2)
         value = self.weight * np.clip(shortfall, 0.0, 2.0).mean()
@@ -178,7 +254,22 @@ class FarFieldTerm:
         coef_f = np.where(active, -k / norm, 0.0)
         coef_g = np.where(active, k * f / norm**3, 0.0)[:, None] * g  # (M, dim)
         grad = self._m.T @ coef_f
-        low_t = self._low.T @ coef_g  # (d_{g-1}, dim)
-        for axis in range(g.shape[1]):
-            grad[self._source[axis]] += self._factor[axis] * low_t[:, axis]
+        basis.add_gradient_adjoint(grad, low.T @ coef_g, self.degree)
         return float(value), self.weight * grad / len(f)
+
+
+def fused_rows(terms, dim: int, degree: int, dtype) -> tuple[NDArray, NDArray, NDArray] | None:
+    """The rows that the far-field terms among ``terms`` add to an objective's compiled pass.
+
+    Stacks :meth:`FarFieldTerm.rows` of every active term (design matrix in ``dtype``, k_i,
+    per-sample weights); ``None`` when there is none, so that weight 0 changes nothing.
+    """
+    far = [t for t in terms if isinstance(t, FarFieldTerm) and t.active]
+    for term in far:
+        if term.dim != dim or term.degree != degree:
+            raise error("terms", f"far-field terms of degree {degree} in {dim}D",
+                        f"degree {term.degree} in {term.dim}D", "Build the term for this objective.")
+    if not far:
+        return None
+    parts = [t.rows(dtype) for t in far]
+    return tuple(np.ascontiguousarray(np.concatenate(column)) for column in zip(*parts))

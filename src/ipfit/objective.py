@@ -13,6 +13,13 @@ and because ∂f/∂x_k = m_{g−1}(x)ᵀ (D_k a), the gradients are products wi
 N × d_{g−1} matrix L (the first d_{g−1} columns of M in the graded order) after a gather
 D_k Aᵀ. Points are processed in blocks: two BLAS products per block, then a compiled
 per-point reduction while the block is still in cache (:mod:`ipfit._objective_kernels`).
+The samples of a :class:`~ipfit.farfield.FarFieldTerm` passed in ``terms`` are extra rows of
+the same pass (their own reduction), so the term costs what as many data points cost.
+
+Memory: the design matrix is kept between evaluations only while it is small
+(:data:`CACHE_BYTES`); beyond that every block builds its rows from the points when it needs
+them, so a million points never need the N × d matrix, in the population pass, the measures,
+the analytic gradient or the whitening.
 
 Threads: with :mod:`threadpoolctl` installed, the blocks are shared between ``threads``
 worker threads (default: the usable cores) that each run single-threaded BLAS and the
@@ -43,6 +50,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from . import basis
 from ._validation import as_normals, as_points, check_degree, check_nonnegative, error
+from .farfield import FarFieldTerm, fused_rows
 from .polynomial import ImplicitPolynomial
 
 __all__ = ["Measures", "measures", "Objective", "ObjectiveTerm", "TAUBIN_CAP", "DEFAULT_DELTA",
@@ -62,6 +70,15 @@ _GRAD_FLOOR = 1e-100
 # in L2/L3 between the BLAS call and the reduction, while blocks stay tall enough for BLAS.
 _BLOCK_BYTES = 4 << 20
 _MIN_ROWS, _MAX_ROWS = 256, 4096
+# Below this many multiply-adds per evaluation (about a millisecond) the worker threads' hand-off
+# costs more than it saves: small evaluations run on the calling thread.
+_THREAD_WORK = 4_000_000
+#: Design matrices up to this size (bytes) are kept between evaluations; bigger ones are
+#: rebuilt block by block on every evaluation (from the power table: a few percent of a pass).
+CACHE_BYTES = 256 << 20
+# Points per block of the single-member gradient pass: 2^13 rows of a degree-8
+# 3D matrix are 11 MB, tall enough for BLAS to run at speed.
+_SINGLE_ROWS = 1 << 13
 
 
 @lru_cache(maxsize=1)
@@ -171,7 +188,8 @@ class Objective:
     r"""The paper's distance (Eq. 5) on fixed data, for whole populations of coefficients.
 
     Build it once per (points, normals, degree, δ, dtype); the monomial matrix is computed
-    once and reused by every evaluation.
+    once and reused by every evaluation while it fits in :data:`CACHE_BYTES`, and otherwise
+    rebuilt block by block (bounded memory for any number of points).
 
     Parameters
     ----------
@@ -192,11 +210,14 @@ class Objective:
         :meth:`value_and_grad` always works in float64.
     terms : sequence of :class:`ObjectiveTerm`
         Extra terms added to the distance in :meth:`__call__` and :meth:`value_and_grad`;
-        empty (default) gives exactly the paper's objective.
+        empty (default) gives exactly the paper's objective, and so does a
+        :class:`~ipfit.farfield.FarFieldTerm` of weight 0. Far-field terms (same degree) are
+        evaluated as extra rows of the compiled pass; :meth:`measures` never includes terms.
     threads : int, optional
         Worker threads for population evaluation (default: the usable cores); used only when
-        :mod:`threadpoolctl` is installed and there are at least two blocks of points. Results
-        are reproducible for a given value (fixed partition, fixed summation order).
+        :mod:`threadpoolctl` is installed and an evaluation spans several blocks and about a
+        millisecond of work. Results are reproducible for a given value (fixed partition,
+        fixed summation order).
 
     Examples
     --------
@@ -231,21 +252,17 @@ class Objective:
         self.n_points = pts.shape[0]
         self.n_coefficients = basis.n_coefficients(self.dim, self.degree)
         self.n_lower = basis.n_coefficients(self.dim, self.degree - 1)
-        exps = basis.exponents(self.dim, self.degree)
+        self._exps = basis.exponents(self.dim, self.degree)
         # The graded order puts every monomial of degree <= g-1 first, so the derivative
         # design matrix L is a column slice of M: no second matrix to build or store.
-        assert np.array_equal(exps[: self.n_lower], basis.exponents(self.dim, self.degree - 1))
-        m64 = basis.monomials(pts, exps)
-        self._m64 = m64
-        self._m = m64 if self.dtype == np.float64 else m64.astype(self.dtype)
+        cached = self.n_points * self.n_coefficients * self.dtype.itemsize <= CACHE_BYTES
+        self._m = basis.monomials(pts, self._exps).astype(self.dtype, copy=False) if cached else None
         self._normals = np.ascontiguousarray(self.normals64, dtype=self.dtype)
-        # D_k has exactly one non-zero per row: (D_k a)[j] = factor[k, j] * a[source[k, j]].
-        maps = basis.derivative_maps(self.dim, self.degree)
-        self._source = np.stack([dk.indices for dk in maps])
-        self._factor = np.stack([dk.data for dk in maps])
-        if any(dk.nnz != self.n_lower for dk in maps):  # pragma: no cover - basis invariant
-            raise AssertionError("derivative maps must have one entry per row")
-        self._kernel = None
+        self._far = fused_rows(self.terms, self.dim, self.degree, self.dtype)
+        # Terms outside the compiled pass; a far-field term of weight 0 is dropped altogether,
+        # so that the objective is then the paper's, bit for bit.
+        self._extra = tuple(t for t in self.terms if not isinstance(t, FarFieldTerm))
+        self._with_grad = self._extra + tuple(t for t in self.terms if isinstance(t, FarFieldTerm) and t.active)
         self._whitening = None
 
     # -- construction from raw data ---------------------------------------------------------
@@ -285,61 +302,75 @@ class Objective:
 
     def sums(self, population: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Per-member Σ_i Taubin term and Σ_i cosine over the points (the fused kernel)."""
-        a = self._population(population)
-        if self._kernel is None:
-            from ._objective_kernels import reduce_population
+        sums = self._sums(self._population(population), far=False)
+        return sums[0], sums[1]
 
-            self._kernel = reduce_population
+    def _design(self, lo: int, hi: int, dtype) -> NDArray:
+        """Rows lo:hi of the design matrix M, from the cache or built from the points."""
+        if self._m is not None and self._m.dtype == dtype:
+            return self._m[lo:hi]
+        return basis.monomials(self.u[lo:hi], self._exps).astype(dtype, copy=False)
+
+    def _sums(self, a: NDArray, far: bool) -> NDArray[np.float64]:
+        """(3, P): Σ Taubin, Σ cosine over the data, and the far-field term, in one pass."""
         n_members = a.shape[0]
         at = np.ascontiguousarray(a.T, dtype=self.dtype)  # (d, P)
-        # Gathered derivative coefficients, member p of axis k in column k*P + p.
-        bt = np.empty((self.n_lower, self.dim * n_members), dtype=self.dtype)
-        for k in range(self.dim):
-            np.multiply(at[self._source[k]], self._factor[k][:, None], out=bt[:, k * n_members:(k + 1) * n_members])
+        bt = basis.gradient_coefficients(at, self.dim, self.degree)  # (d_{g-1}, dim·P)
         rows = self.block_rows(n_members)
-        n_blocks = -(-self.n_points // rows)
-        workers = min(self.threads, n_blocks) if _controller() is not None else 1
-        if workers == 1:
-            return self._partial_sums(at, bt, 0, self.n_points, rows)
+        jobs = [(False, lo, hi) for lo, hi in basis.point_blocks(self.n_points, rows)]
+        if far and self._far is not None:
+            jobs += [(True, lo, hi) for lo, hi in basis.point_blocks(len(self._far[0]), rows)]
+        workers = min(self.threads, len(jobs)) if _controller() is not None else 1
+        n_rows = sum(hi - lo for _, lo, hi in jobs)
+        if workers == 1 or n_rows * n_members * (self.n_coefficients + self.dim * self.n_lower) < _THREAD_WORK:
+            return self._partial_sums(at, bt, jobs, rows)
         # Contiguous runs of whole blocks per worker, summed in a fixed order: reproducible.
-        cuts = [min(self.n_points, (n_blocks * k // workers) * rows) for k in range(workers + 1)]
+        cuts = [len(jobs) * k // workers for k in range(workers + 1)]
         with single_threaded_blas():
-            futures = [_pool(workers).submit(self._partial_sums, at, bt, lo, hi, rows)
+            futures = [_pool(workers).submit(self._partial_sums, at, bt, jobs[lo:hi], rows)
                        for lo, hi in zip(cuts[:-1], cuts[1:])]
             parts = [f.result() for f in futures]
-        sum_t, sum_c = parts[0]
-        for t, c in parts[1:]:
-            sum_t += t
-            sum_c += c
-        return sum_t, sum_c
+        total = parts[0]
+        for part in parts[1:]:
+            total += part
+        return total
 
-    def _partial_sums(self, at: NDArray, bt: NDArray, lo: int, hi: int, rows: int):
+    def _partial_sums(self, at: NDArray, bt: NDArray, jobs, rows: int) -> NDArray[np.float64]:
+        from ._objective_kernels import reduce_far_field, reduce_population
+
         n_members = at.shape[1]
         values = np.empty((rows, n_members), dtype=self.dtype)
         grads = np.empty((rows, self.dim * n_members), dtype=self.dtype)
-        sum_t = np.zeros(n_members)
-        sum_c = np.zeros(n_members)
-        m, low = self._m, self._m[:, : self.n_lower]
-        for start in range(lo, hi, rows):
-            stop = min(start + rows, hi)
-            n = stop - start
-            np.matmul(m[start:stop], at, out=values[:n])
-            np.matmul(low[start:stop], bt, out=grads[:n])
-            self._kernel(values[:n], grads[:n], self._normals[start:stop], _TINY, TAUBIN_CAP, sum_t, sum_c)
-        return sum_t, sum_c
+        sums = np.zeros((3, n_members))
+        for is_far, lo, hi in jobs:
+            n = hi - lo
+            m = self._far[0][lo:hi] if is_far else self._design(lo, hi, self.dtype)
+            np.matmul(m, at, out=values[:n])
+            np.matmul(m[:, : self.n_lower], bt, out=grads[:n])
+            if is_far:
+                reduce_far_field(values[:n], grads[:n], self._far[1][lo:hi], self._far[2][lo:hi], _TINY, sums[2])
+            else:
+                reduce_population(values[:n], grads[:n], self._normals[lo:hi], _TINY, TAUBIN_CAP, sums[0], sums[1])
+        return sums
 
     def measures(self, population: ArrayLike) -> Measures:
-        """:class:`Measures` of every member, as (P,) float64 arrays."""
-        sum_t, sum_c = self.sums(population)
-        dissim = sum_t / self.n_points
-        smooth = sum_c / self.n_points
+        """:class:`Measures` of every member, as (P,) float64 arrays (the data only, no terms)."""
+        sums = self._sums(self._population(population), far=False)
+        return self._measures(sums)
+
+    def _measures(self, sums: NDArray[np.float64]) -> Measures:
+        dissim = sums[0] / self.n_points
+        smooth = sums[1] / self.n_points
         return Measures(dissim, smooth, dissim + self.delta * (1.0 - smooth), self.delta)
 
     def __call__(self, population: ArrayLike) -> NDArray[np.float64]:
         """(P, d) coefficients → (P,) objective values (the distance plus any extra terms)."""
         a = self._population(population)
-        value = self.measures(a).distance
-        for term in self.terms:
+        sums = self._sums(a, far=True)
+        value = self._measures(sums).distance
+        if self._far is not None:
+            value = value + sums[2]
+        for term in self._extra:
             value = value + np.asarray(term(a), dtype=np.float64)
         return value
 
@@ -380,35 +411,36 @@ class Objective:
             return self._value_and_grad(a)
 
     def _value_and_grad(self, a: NDArray[np.float64]) -> tuple[float, NDArray[np.float64]]:
-        m, low = self._m64, self._m64[:, : self.n_lower]
-        f = m @ a
-        bt = (a[self._source] * self._factor).T  # (d_{g-1}, dim)
-        g = low @ bt  # (N, dim)
-        sq = np.maximum(np.einsum("ij,ij->i", g, g), _TINY)
-        inv = 1.0 / np.sqrt(sq)
-        absf = np.abs(f)
-        taubin = absf * inv
-        capped = taubin >= TAUBIN_CAP
-        taubin = np.minimum(taubin, TAUBIN_CAP)
-        dot = np.einsum("ij,ij->i", g, self.normals64)
-        cosine = dot * inv
+        bt = basis.gradient_coefficients(a[:, None], self.dim, self.degree)  # (d_{g-1}, dim)
+        sum_t = sum_c = 0.0
+        grad = np.zeros(self.n_coefficients)
+        low_t_w = np.zeros((self.n_lower, self.dim))
+        for lo, hi in basis.point_blocks(self.n_points, _SINGLE_ROWS):
+            m = self._design(lo, hi, np.float64)
+            low, nrm = m[:, : self.n_lower], self.normals64[lo:hi]
+            f = m @ a
+            g = low @ bt  # (n, dim)
+            sq = np.maximum(np.einsum("ij,ij->i", g, g), _TINY)
+            inv = 1.0 / np.sqrt(sq)
+            taubin = np.abs(f) * inv
+            capped = taubin >= TAUBIN_CAP
+            taubin = np.minimum(taubin, TAUBIN_CAP)
+            cosine = np.einsum("ij,ij->i", g, nrm) * inv
+            sum_t += taubin.sum()
+            sum_c += cosine.sum()
+            # d|f|/||g|| = sign(f)/||g|| dm − |f| gᵀ/||g||³ dg;  d(g·n/||g||) = (n − cos g/||g||)/||g|| dg.
+            # Capped points and points where ∇f vanishes contribute no gradient (it is unbounded
+            # there); zeroing 1/||g|| at those points removes them from both weights.
+            inv = np.where(~capped & (sq > _GRAD_FLOOR), inv, 0.0)
+            weight_g = (-(taubin * inv * inv)[:, None] * g
+                        - self.delta * (nrm - (cosine * inv)[:, None] * g) * inv[:, None])
+            grad += m.T @ (np.sign(f) * inv)
+            low_t_w += low.T @ weight_g
         n = self.n_points
-        value = taubin.sum() / n + self.delta * (1.0 - cosine.sum() / n)
-        # d|f|/||g|| = sign(f)/||g|| dm − |f| gᵀ/||g||³ dg;  d(g·n/||g||) = (n − cos g/||g||)/||g|| dg.
-        # Capped points and points where ∇f vanishes contribute no gradient (it is unbounded
-        # there); zeroing 1/||g|| at those points removes them from both weights.
-        live = ~capped & (sq > _GRAD_FLOOR)
-        inv = np.where(live, inv, 0.0)
-        weight_f = np.sign(f) * inv
-        weight_g = (-(taubin * inv * inv)[:, None] * g
-                    - self.delta * (self.normals64 - (cosine * inv)[:, None] * g) * inv[:, None])
-        grad = m.T @ weight_f
-        low_t_w = low.T @ weight_g  # (d_{g-1}, dim)
-        for k in range(self.dim):
-            # D_kᵀ y scatters y back through the gather; the sources of one axis are distinct.
-            grad[self._source[k]] += self._factor[k] * low_t_w[:, k]
+        value = sum_t / n + self.delta * (1.0 - sum_c / n)
+        basis.add_gradient_adjoint(grad, low_t_w, self.degree)  # the chain rule through ∇f = L D_k a
         grad /= n
-        for term in self.terms:
+        for term in self._with_grad:
             tv, tg = term.value_and_grad(a)
             value += float(tv)
             grad = grad + np.asarray(tg, dtype=np.float64)

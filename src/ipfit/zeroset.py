@@ -24,6 +24,7 @@ from typing import NamedTuple, Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from . import basis
 from ._validation import as_points, check_int, check_nonnegative, error
 from .polynomial import ImplicitPolynomial
 
@@ -121,14 +122,6 @@ def grid_axes(bounds: ArrayLike, resolution) -> list[NDArray[np.float64]]:
     return [np.linspace(lo, hi, n) for (lo, hi), n in zip(arr, shape)]
 
 
-def _power_rows(u: NDArray, degree: int) -> NDArray:
-    table = np.empty((u.size, degree + 1))
-    table[:, 0] = 1.0
-    for e in range(1, degree + 1):
-        np.multiply(table[:, e - 1], u, out=table[:, e])  # same products as basis.power_table
-    return table
-
-
 def grid_values(poly: ImplicitPolynomial, bounds: ArrayLike, resolution) -> NDArray[np.float64]:
     """f on a regular grid over ``bounds`` (user coordinates), by separable contraction.
 
@@ -155,7 +148,7 @@ def grid_values(poly: ImplicitPolynomial, bounds: ArrayLike, resolution) -> NDAr
     dim, degree = poly.dim, poly.degree
     axes = grid_axes(_as_bounds(bounds, dim), resolution)
     norm = poly.normalization
-    tables = [_power_rows((ax - c) / norm.scale, degree) for ax, c in zip(axes, norm.center)]
+    tables = [basis.power_table(((ax - c) / norm.scale)[:, None], degree)[:, 0] for ax, c in zip(axes, norm.center)]
     dense = np.zeros((degree + 1,) * dim)
     dense[tuple(poly.exponents.T)] = poly.coefficients
     if dim == 2:
