@@ -76,7 +76,7 @@ def test_far_field_rows_remove_the_spurious_sheets_of_3l_on_a_sphere():
 
     shape = synthetic.sphere(500)
     plain = quality(ipfit.fit_3l(shape.points, shape.normals, 4), shape.points)
-    far = quality(ipfit.fit_3l(shape.points, shape.normals, 4, far_weight=1e-3), shape.points)
+    far = quality(ipfit.fit_3l(shape.points, shape.normals, 4, far_row_weight=1e-3), shape.points)
     assert plain.n_spurious > 0  # the example: 3L at degree 4 grows extra components
     assert far.n_spurious == 0 and far.n_components == 1 and far.closed
     assert far.f_score >= plain.f_score
@@ -84,7 +84,7 @@ def test_far_field_rows_remove_the_spurious_sheets_of_3l_on_a_sphere():
 
 def test_far_field_weight_zero_is_plain_3l(rng):
     shape = synthetic.ellipse(100)
-    a = ipfit.fit_3l(shape.points, shape.normals, 4, far_weight=0.0)
+    a = ipfit.fit_3l(shape.points, shape.normals, 4, far_row_weight=0.0)
     b = ipfit.fit_3l(shape.points, shape.normals, 4)
     np.testing.assert_array_equal(a.coefficients, b.coefficients)
 
@@ -93,11 +93,13 @@ def test_refine_with_far_field_reports_both_values():
     from ipfit.refine import refine
 
     shape = synthetic.ellipse(80)
-    plain = refine(shape.points, shape.normals, 4, iterations=5, rng=0)
-    far = refine(shape.points, shape.normals, 4, iterations=5, rng=0, far_weight=0.1)
+    plain = refine(shape.points, shape.normals, 4, options=ipfit.RECOMMENDED.replace(iterations=5, far_term_weight=0.0),
+                   rng=0)
+    far = refine(shape.points, shape.normals, 4, options=ipfit.RECOMMENDED.replace(iterations=5, far_term_weight=0.1),
+                 rng=0)
     assert plain.fun == pytest.approx(plain.distance)  # weight 0: the paper's objective
     assert far.fun >= far.distance  # the term is non-negative and reported separately
-    assert far.info["far_weight"] == 0.1 and "3l-far" in far.seed_distances
+    assert far.info["far_term_weight"] == 0.1 and "3l-far" in far.start_distances
     np.testing.assert_array_equal(far.x, far.polynomial.coefficients)
 
 

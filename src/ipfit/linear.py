@@ -119,6 +119,7 @@ def _triangular_lstsq(r: NDArray, z: NDArray, method: str) -> tuple[NDArray, dic
 # Rows per QR step on big systems: [R; next rows] is factorised in turn (a tall-skinny QR), so
 # the full design matrix never exists. Systems with fewer rows take one QR, as before.
 _BLOCK_ROWS = 1 << 17
+_SIGN_POINTS = 50_000
 
 
 def _r_of_blocks(blocks: Iterable[NDArray]) -> NDArray:
@@ -348,7 +349,10 @@ def _fit(method: str, points, normals, degree, normalization=None, **params) -> 
                     "Check the points, the normals and the degree.")
     poly = ImplicitPolynomial(problem.exponents, coef, problem.normalization, method=method, info=info)
     if problem.normals is not None:
-        return poly.canonical(problem.normalization.invert(problem.u), problem.normals)
+        # The sign only needs the normals' overall agreement: every k-th point of a big cloud
+        # (all points up to _SIGN_POINTS) keeps the gradients' memory bounded.
+        every = slice(None, None, max(1, len(problem.u) // _SIGN_POINTS))
+        return poly.canonical(problem.normalization.invert(problem.u[every]), problem.normals[every])
     return poly.canonical()
 
 
