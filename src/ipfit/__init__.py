@@ -23,6 +23,14 @@ from .quality import Quality, quality
 from .refine import REFINE_METHODS, RefineResult, refine
 from .solid import outward_vertices, winding_number
 from .zeroset import ZeroSet, extract_zero_set, grid_values
+from .codegen import to_source
+from .rays import RayHits, intersect_rays, render
+from .projection import Projection, project
+from .curvature import Curvature, hessian
+from .invariants import descriptors, similarity
+# ipfit.curvature and ipfit.invariants stay the modules: their same-named functions are
+# ipfit.curvature.curvature (or poly.curvature) and ipfit.invariants.invariants.
+from . import codegen, curvature, invariants, projection, rays, recognition
 
 __version__ = "0.1.0"
 
@@ -77,4 +85,20 @@ __all__ = [
     "IpfitWarning",
     "ConditioningWarning",
     "basis",
+    "to_source",
+    "intersect_rays",
+    "RayHits",
+    "render",
+    "project",
+    "Projection",
+    "Curvature",
+    "hessian",
+    "descriptors",
+    "similarity",
+    "codegen",
+    "rays",
+    "projection",
+    "curvature",
+    "invariants",
+    "recognition",
 ]

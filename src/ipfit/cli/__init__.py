@@ -14,7 +14,7 @@ from typing import Sequence
 
 from ..exceptions import IpfitError
 
-SUBCOMMANDS = ("fit", "normals", "mesh", "plot", "score", "datasets", "reproduce")
+SUBCOMMANDS = ("fit", "normals", "mesh", "plot", "score", "datasets", "reproduce", "export", "render")
 
 
 class _Parser(argparse.ArgumentParser):
