@@ -124,11 +124,11 @@ def _sympy(poly) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _c_like(poly, scalar: str, number: Callable[[float], str]) -> tuple[list[str], list[str], str]:
+def _c_like(poly, scalar: str, number: Callable[[float], str], const: str) -> tuple[list[str], list[str], str]:
     dim = poly.dim
     params = ", ".join(f"{scalar} {n}" for n in _INPUTS[:dim])
-    setup = [f"    const {scalar} s = {number(float(poly.scale))};"] + [
-        f"    const {scalar} {_NORMALISED[j]} = ({_INPUTS[j]} - {number(float(poly.center[j]))}) / s;" for j in range(dim)]
+    setup = [f"    {const}{scalar} s = {number(float(poly.scale))};"] + [
+        f"    {const}{scalar} {_NORMALISED[j]} = ({_INPUTS[j]} - {number(float(poly.center[j]))}) / s;" for j in range(dim)]
     grads = [horner(t, _NORMALISED[:dim], number) for t in _gradient_terms(poly)]
     return setup, grads, params
 
@@ -139,7 +139,7 @@ def _c_number(value: float) -> str:
 
 def _c(poly) -> str:
     dim = poly.dim
-    setup, grads, params = _c_like(poly, "double", _c_number)
+    setup, grads, params = _c_like(poly, "double", _c_number, "const ")
     body = horner(_terms(poly.exponents, poly.coefficients), _NORMALISED[:dim], _c_number)
     lines = _header(poly, "//") + [
         f"// Compile with any C99 compiler; gradient writes {dim} values to out.", "",
@@ -161,7 +161,7 @@ def _glsl_number(value: float) -> str:
 def _glsl(poly) -> str:
     dim = poly.dim
     vec = f"vec{dim}"
-    setup, grads, params = _c_like(poly, "float", _glsl_number)
+    setup, grads, params = _c_like(poly, "float", _glsl_number, "")  # GLSL 3.30: const needs constant initialisers
     body = horner(_terms(poly.exponents, poly.coefficients), _NORMALISED[:dim], _glsl_number)
     comps = ", ".join(f"p.{a}" for a in "xyz"[:dim])
     lines = _header(poly, "//") + [

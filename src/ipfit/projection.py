@@ -2,8 +2,8 @@
 
 For each query point q, starting points on the zero set come from exact ray intersections
 (:mod:`ipfit.rays`) along the line through q in the direction of ∇f(q) — where Newton's
-method on f along ∇f heads — and, as a fallback when that line misses or ∇f(q) = 0, along
-the coordinate axes. The nearest of them is then polished by Newton's method on the
+method on f along ∇f heads — and, as fallbacks when that line misses or ∇f(q) = 0, along
+the line to the data's centre, the coordinate axes and the diagonals. The nearest of them is then polished by Newton's method on the
 Lagrange conditions of the closest point, u − q + λ∇f(u) = 0 and f(u) = 0, with the exact
 Hessian (:mod:`ipfit.curvature`); the polished point is kept only if it lies on the zero
 set and is not farther than the starting point, so the answer is never worse than an exact
@@ -13,6 +13,7 @@ order one, and scaled back.
 
 from __future__ import annotations
 
+from functools import lru_cache
 from typing import NamedTuple
 
 import numpy as np
@@ -45,11 +46,25 @@ class Projection(NamedTuple):
     converged: NDArray[np.bool_]
 
 
+@lru_cache(maxsize=2)
+def _fixed_directions(dim: int) -> tuple[NDArray, ...]:
+    # Lines every 22.5° in 2D; axes, face and body diagonals (13 lines) in 3D. A closest point
+    # that the ∇f line misses is usually near one of their hits, which Newton then polishes.
+    if dim == 2:
+        angles = np.pi * np.arange(8) / 8
+        return tuple(np.column_stack([np.cos(angles), np.sin(angles)]))
+    grid = np.array(np.meshgrid(*[[-1.0, 0.0, 1.0]] * 3, indexing="ij")).reshape(3, -1).T
+    keep = [v for v in grid if np.any(v) and v[np.flatnonzero(v)[0]] > 0]
+    return tuple(v / np.linalg.norm(v) for v in keep)
+
+
 def _nearest_line_hits(poly, pts: NDArray) -> NDArray[np.float64]:
-    """Nearest intersection of lines through ``pts`` (gradient direction, then the axes)."""
-    grad = poly.gradient(pts)
-    unit, ok = unit_rows_mask(grad)
-    directions = [np.where(ok[:, None], unit, np.eye(poly.dim)[0])] + list(np.eye(poly.dim))
+    """Nearest intersection of lines through ``pts``: along ∇f, towards the data's centre, fixed ones."""
+    unit, ok = unit_rows_mask(poly.gradient(pts))
+    inward, ok_in = unit_rows_mask(poly.center - pts)
+    fallback = np.eye(poly.dim)[0]
+    directions = [np.where(ok[:, None], unit, fallback), np.where(ok_in[:, None], inward, fallback)]
+    directions += list(_fixed_directions(poly.dim))
     best = np.full(pts.shape, np.nan)
     best_d = np.full(len(pts), np.inf)
     for d in directions:

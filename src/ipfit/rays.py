@@ -241,9 +241,12 @@ def camera_rays(bounds: ArrayLike, size: tuple[int, int], view: tuple[float, flo
     right = np.cross(vertical, to_eye)
     right /= np.linalg.norm(right)
     upward = np.cross(to_eye, right)
+    # Frame the box's projection (its corners seen along the view), not its bounding sphere.
+    corners = np.array(np.meshgrid(*box, indexing="ij")).reshape(3, -1).T - centre
+    extent = max(np.abs(corners @ right).max(), np.abs(corners @ upward).max()) * 1.02
     width, height = size
-    half_w = radius * max(1.0, width / height)
-    half_h = radius * max(1.0, height / width)
+    half_w = extent * max(1.0, width / height)
+    half_h = extent * max(1.0, height / width)
     xs = np.linspace(-half_w, half_w, width)
     ys = np.linspace(half_h, -half_h, height)
     gx, gy = np.meshgrid(xs, ys)
