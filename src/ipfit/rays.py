@@ -29,7 +29,7 @@ from . import basis
 from ._numeric import unit_rows_mask
 from ._validation import as_points, check_int, check_real, error
 
-__all__ = ["RayHits", "intersect_rays", "render", "camera_rays"]
+__all__ = ["RayHits", "intersect_rays", "render", "camera_rays", "first_hits"]
 
 _BLOCK = 4096  # rays per block: bounds the (rays, monomials, degree+1) expansion table
 _IMAG_TOL = 1e-5  # eigenvalues with |imag| below this (relative) are candidate real roots
@@ -264,6 +264,22 @@ def _box_interval(o: NDArray, d: NDArray, box: NDArray) -> tuple[NDArray, NDArra
     return np.maximum(lo, 0.0), hi
 
 
+def first_hits(poly, origins: NDArray, direction: NDArray, bounds: NDArray) -> NDArray[np.float64]:
+    """Parameter of each ray's first hit inside the box ``bounds`` (NaN for none), as drawn by :func:`render`."""
+    box = np.asarray(bounds, dtype=np.float64)
+    directions = np.broadcast_to(direction, origins.shape)
+    lo, hi = _box_interval(origins, directions, box)
+    first = np.full(len(origins), np.inf)
+    live = np.flatnonzero(lo <= hi)
+    for start in range(0, live.size, _BLOCK):
+        rows = live[start:start + _BLOCK]
+        hits = intersect_rays(origins[rows], directions[rows], poly)
+        inside = (hits.t >= lo[rows, None]) & (hits.t <= hi[rows, None])
+        first[rows] = np.min(np.where(inside, hits.t, np.inf), axis=1)
+    first[~np.isfinite(first)] = np.nan
+    return first
+
+
 def render(poly, bounds: ArrayLike, path: str | os.PathLike | None = None, *, size: int | tuple[int, int] = 480,
            view: tuple[float, float] = (20.0, -60.0), up: str = "z",
            color: tuple[float, float, float] = (0.85, 0.72, 0.55)) -> NDArray[np.uint8]:
@@ -301,16 +317,7 @@ def render(poly, bounds: ArrayLike, path: str | os.PathLike | None = None, *, si
     if up not in ("x", "y", "z"):
         raise error("up", "'x', 'y' or 'z'", repr(up))
     origins, direction, light = camera_rays(box, (width, height), view, up)
-    directions = np.broadcast_to(direction, origins.shape)
-    lo, hi = _box_interval(origins, directions, box)
-    first = np.full(len(origins), np.nan)
-    live = np.flatnonzero(lo <= hi)
-    for start in range(0, live.size, _BLOCK):
-        rows = live[start:start + _BLOCK]
-        hits = intersect_rays(origins[rows], directions[rows], poly)
-        t = np.where((hits.t >= lo[rows, None]) & (hits.t <= hi[rows, None]), hits.t, np.nan)
-        first[rows] = np.nanmin(np.where(np.isnan(t), np.inf, t), axis=1)
-    first[~np.isfinite(first)] = np.nan
+    first = first_hits(poly, origins, direction, box)
     hit = np.isfinite(first)
     image = np.ones((len(origins), 3))
     if hit.any():
