@@ -84,12 +84,12 @@ def boot_curvature(folder: Path) -> tuple[str, float, float]:
     points, _ = ipfit.load_dataset("boot")
     on_curve = poly.project(points).points
     k = curvature(on_curve, poly).mean
-    fig, ax = plt.subplots(figsize=(5, 5))
+    fig, ax = plt.subplots(figsize=(7, 4))
     limit = np.percentile(np.abs(k), 98)
     sc = ax.scatter(on_curve[:, 0], on_curve[:, 1], c=k, cmap="coolwarm", vmin=-limit, vmax=limit, s=6)
     ax.set_aspect("equal")
-    ax.set_title("boot fit: curvature at the projected data points")
-    fig.colorbar(sc, ax=ax, shrink=0.8, label="curvature (1 / data units)")
+    ax.set_title("boot fit: curvature at the projected data points", fontsize=10)
+    fig.colorbar(sc, ax=ax, shrink=0.6, label="curvature (1 / data unit)")
     fig.savefig(folder / "boot-curvature.png", dpi=100, bbox_inches="tight")
     plt.close(fig)
     return "polynomial-use/boot-curvature.png", float(k.min()), float(k.max())

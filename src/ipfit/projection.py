@@ -97,7 +97,7 @@ def _lagrange_newton(poly, q: NDArray, u: NDArray) -> tuple[NDArray, NDArray]:
             step[solvable] = np.linalg.solve(jac[solvable], resid[solvable][:, :, None])[:, :, 0]
         # A long step means Newton is not in its basin: stop moving that point.
         size = np.linalg.norm(step[:, :dim], axis=1)
-        step[size > 0.5] = 0.0
+        step[~(size <= 0.5)] = 0.0  # also drops NaN steps from a nearly singular system
         u = u - step[:, :dim]
         lam = lam - step[:, dim]
     value, grad, _ = derivatives_normalized(poly, u)

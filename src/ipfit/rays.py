@@ -133,10 +133,16 @@ def _newton_on_ray(poly, p: NDArray, e: NDArray, tau: NDArray) -> tuple[NDArray,
     return out_tau, out_val, out_scale
 
 
+def _rows(value: ArrayLike, name: str, dim: int) -> NDArray[np.float64]:
+    try:
+        value = np.atleast_2d(np.asarray(value, dtype=np.float64))
+    except (TypeError, ValueError):
+        pass  # as_points words the error
+    return as_points(value, name, dims=(dim,))
+
+
 def _as_rays(poly, origins: ArrayLike, directions: ArrayLike) -> tuple[NDArray, NDArray]:
-    o = np.atleast_2d(as_points(np.atleast_2d(np.asarray(origins, dtype=np.float64)), "origins", dims=(poly.dim,)))
-    d = np.atleast_2d(as_points(np.atleast_2d(np.asarray(directions, dtype=np.float64)), "directions",
-                                dims=(poly.dim,)))
+    o, d = _rows(origins, "origins", poly.dim), _rows(directions, "directions", poly.dim)
     if len(o) != len(d) and 1 not in (len(o), len(d)):
         raise error("directions", f"one direction per origin ({len(o)}) or a single one", f"{len(d)} directions",
                     "Pass arrays of the same length, or one origin or one direction for all rays.")
@@ -259,8 +265,9 @@ def _box_interval(o: NDArray, d: NDArray, box: NDArray) -> tuple[NDArray, NDArra
     with np.errstate(divide="ignore", invalid="ignore"):
         a = (box[:, 0] - o) / d
         b = (box[:, 1] - o) / d
-    lo = np.nanmax(np.minimum(a, b), axis=1)
-    hi = np.nanmin(np.maximum(a, b), axis=1)
+    # fmax/fmin skip the NaN of a zero direction component on a box face, without a warning.
+    lo = np.fmax.reduce(np.minimum(a, b), axis=1)
+    hi = np.fmin.reduce(np.maximum(a, b), axis=1)
     return np.maximum(lo, 0.0), hi
 
 
