@@ -17,8 +17,9 @@ Precision
 ---------
 Python, C and SymPy exports use double precision literals that round-trip exactly
 (``repr``), so they agree with ``poly(points)`` to rounding (about 1e-15 of the sum of the
-absolute terms). GLSL is single precision: expect about 1e-6 of that sum, and more far from
-the data, where the terms grow like ``|u|**degree``.
+absolute terms). GLSL is single precision: within 1e-6 × degree of that sum (the tested
+tolerance), which far from the data, where the terms grow like ``|u|**degree``, is large
+compared with f itself.
 
 >>> from ipfit import ImplicitPolynomial
 >>> circle = ImplicitPolynomial.from_coefficients([-1, 0, 0, 1, 0, 1], dim=2)
@@ -213,7 +214,8 @@ def _latex(poly) -> str:
     lines = [" ".join(rows[i:i + 4]) for i in range(0, len(rows), 4)]
     c, s = [float(v) for v in poly.center], float(poly.scale)
     defs = ", \\quad ".join(f"{_NORMALISED[j]} = \\frac{{{_INPUTS[j]} - ({c[j]!r})}}{{{s!r}}}" for j in range(dim))
-    out = ["% " + line[2:] for line in _header(poly, "#")] + [
+    header = [line.replace("nested Horner form", "graded monomial order") for line in _header(poly, "%")]
+    out = header + [
         r"\begin{aligned}",
         f"f({names}) ={{}}& " + " \\\\\n&".join(lines) + r", \\",
         f"&\\text{{where }} {defs}.",
