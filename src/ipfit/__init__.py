@@ -34,6 +34,12 @@ _LAZY = {
     "PAPER_RULE": "options",
     "outward_vertices": "solid", "winding_number": "solid",
     "ZeroSet": "zeroset", "extract_zero_set": "zeroset", "grid_values": "zeroset",
+    "to_source": "codegen", "RayHits": "rays", "intersect_rays": "rays", "render": "rays",
+    "Projection": "projection", "project": "projection", "Curvature": "curvature", "hessian": "curvature",
+    "descriptors": "invariants", "similarity": "invariants",
+    # ipfit.curvature and ipfit.invariants stay the modules: their same-named functions are
+    # ipfit.curvature.curvature (or poly.curvature) and ipfit.invariants.invariants.
+    "codegen": None, "curvature": None, "invariants": None, "projection": None, "rays": None, "recognition": None,
 }
 
 
@@ -122,4 +128,20 @@ __all__ = [
     "IpfitWarning",
     "ConditioningWarning",
     "basis",
+    "to_source",
+    "intersect_rays",
+    "RayHits",
+    "render",
+    "project",
+    "Projection",
+    "Curvature",
+    "hessian",
+    "descriptors",
+    "similarity",
+    "codegen",
+    "rays",
+    "projection",
+    "curvature",
+    "invariants",
+    "recognition",
 ]

@@ -338,6 +338,37 @@ class ImplicitPolynomial:
         return (f"ImplicitPolynomial(dim={self.dim}, degree={self.degree}, "
                 f"n_coefficients={self.n_coefficients}, method={self.method!r})")
 
+    # -- using the polynomial (ipfit.codegen, rays, projection, curvature) -----------------
+    def to_source(self, language: str) -> str:
+        """Standalone source of f and ∇f: see :func:`ipfit.codegen.to_source`."""
+        from .codegen import to_source
+
+        return to_source(self, language)
+
+    def intersect_rays(self, origins: ArrayLike, directions: ArrayLike, tmin: float = 0.0, tmax: float = math.inf):
+        """Every intersection of rays with the zero set: see :func:`ipfit.rays.intersect_rays`."""
+        from .rays import intersect_rays
+
+        return intersect_rays(origins, directions, self, tmin, tmax)
+
+    def project(self, points: ArrayLike):
+        """Closest points on the zero set and true distances: see :func:`ipfit.projection.project`."""
+        from .projection import project
+
+        return project(points, self)
+
+    def curvature(self, points: ArrayLike):
+        """Curvatures of the level set through ``points``: see :func:`ipfit.curvature.curvature`."""
+        from .curvature import curvature
+
+        return curvature(points, self)
+
+    def hessian(self, points: ArrayLike) -> NDArray[np.float64]:
+        """Hessian of f at ``points``, shape (N, dim, dim): see :func:`ipfit.curvature.hessian`."""
+        from .curvature import hessian
+
+        return hessian(points, self)
+
 
 def _sphere_directions(dim: int, n: int = 64) -> NDArray[np.float64]:
     if dim == 2:

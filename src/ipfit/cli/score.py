@@ -75,12 +75,18 @@ def run(args: argparse.Namespace) -> int:
         args.contour == "yes" or (args.contour == "auto" and looks_like_contour(points)))
     q = quality(poly, points, faces=faces, ordered_contour=ordered, tau=args.tau, tau_fraction=args.tau_fraction,
                 margin=args.margin, resolution=args.resolution)
+    from ..projection import distance_summary
+
+    dist = distance_summary(points, poly)  # true distance (closest points) beside Taubin's estimate
     if args.json:
-        print(json.dumps(q.to_dict(), indent=1))
+        print(json.dumps({**q.to_dict(), "distance_to_zero_set": dist}, indent=1))
     else:
         data_name = spec if spec is not None else view.input.get("source", "its recorded data")
         print(f"{args.result} against {data_name} (degree {poly.degree}):")
         print(q)
+        print(f"{'distance_true':<18}mean {dist['projected_mean']:.6g}, max {dist['projected_max']:.6g} "
+              f"(closest points on the zero set, {dist['n_points']} data points)")
+        print(f"{'distance_taubin':<18}mean {dist['taubin_mean']:.6g}, max {dist['taubin_max']:.6g} (|f| / |grad f|)")
     if args.write:
         data = dict(view.data)
         data["quality"] = q.to_dict()  # a new key at the end, or the old one updated in place
