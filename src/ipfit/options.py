@@ -129,9 +129,12 @@ class SearchOptions:
         ``stall_tolerance`` (relative) over this many generations. None: always run
         ``iterations`` generations (the paper).
     stall_tolerance : float, default 1e-4
-    warm_start : bool, default True
+    warm_start : bool, default False
         :func:`ipfit.fit_adaptive` starts each degree also from the previous degree's solution
-        (exactly representable, with zero higher-degree coefficients).
+        (exactly representable, with zero higher-degree coefficients). Off by default: measured
+        on the bundled contours it traps the search near the lower degree's shape (airplane:
+        degree 6 selected with F = 0.88 instead of degree 10 with F = 0.99; see
+        ``docs/performance.md``).
     cleanup_weights : tuple of float, default (1.0,)
         When a degree's zero set is not clean (spurious components, or not closed), the
         geometric rule of :func:`ipfit.fit_adaptive` refits that degree with these far-field
@@ -167,7 +170,7 @@ class SearchOptions:
     search_points: int | None = 3000
     stall_generations: int | None = 60
     stall_tolerance: float = 1e-4
-    warm_start: bool = True
+    warm_start: bool = False
     cleanup_weights: tuple[float, ...] = (1.0,)
 
     def __post_init__(self) -> None:
@@ -264,7 +267,7 @@ RECOMMENDED = SearchOptions()
 #: The paper's exact search: DE (F = 0.7, CR = 0.9, 500 iterations, population 4·d, N/10 started)
 #: in the raw coefficients, started from the classic and 3L fits, on the paper's distance.
 PAPER = SearchOptions(start_fits=("lstsq", "3l"), search_space="coefficients", far_term_weight=0.0, search_points=None,
-                      stall_generations=None, warm_start=False, cleanup_weights=())
+                      stall_generations=None, cleanup_weights=())
 
 
 def renamed_keywords(**renames: Callable[[dict, Any], None]) -> Callable:
