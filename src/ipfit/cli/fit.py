@@ -66,6 +66,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-picture", action="store_true", help="skip the PNG picture")
     parser.add_argument("--no-zero-set", action="store_true", help="skip the mesh / curve export")
     parser.add_argument("-q", "--quiet", action="store_true", help="no progress output")
+    parser.add_argument("--max-points", type=positive_int, metavar="N",
+                        help="keep a random subset of N points of a larger file (fixed seed; for big scans)")
 
 
 class _Progress:
@@ -116,7 +118,7 @@ def run(args: argparse.Namespace) -> int:
     from ..exceptions import InvalidInputError
     from ..linear import LINEAR_METHODS
 
-    data = load_input(args.input)
+    data = load_input(args.input, max_points=args.max_points)
     points, normals = data.points, data.normals
     dim = points.shape[1]
     degree = _parse_degree(args.degree, dim)

@@ -162,7 +162,7 @@ def _read_trimesh(path: Path, raw: bytes, kind: str) -> Raw:
             faces.append(np.asarray(f, dtype=np.int64).reshape(len(f), -1)[:, :3] + offset)
         offset += len(v)
     if not points:
-        raise ReadError(f"{path}: no vertices found. Check that it is a {kind.upper()} file with vertices.")
+        raise ReadError(f"{path}: no vertices found. Check that it is a valid {kind.upper()} file with vertices.")
     nrm = np.concatenate(normals) if all(n is not None for n in normals) else None
     return Raw(np.concatenate(points), nrm, np.concatenate(faces) if faces else None,
                "file" if nrm is not None else None, dropped)

@@ -24,7 +24,7 @@ from numpy.typing import NDArray
 from .._numeric import unit_rows_mask
 from .._validation import check_int, check_rng
 from ..exceptions import NormalsDroppedWarning, ReadError
-from ._base import MIN_POINTS, SCANNERS_EXTRA, Raw, as_path, short
+from ._base import MIN_POINTS, Raw, as_path, short
 from .mesh import fill_missing_normals, merge_duplicates, vertex_normals_from_faces
 from .meshfiles import read_gltf, read_obj, read_off, read_ply, read_stl
 from .scanners import read_e57, read_las, read_pcd
@@ -76,30 +76,36 @@ class Mesh(NamedTuple):
 
 
 class Format(NamedTuple):
-    """A readable format: its name, the library that reads it, and the reader."""
+    """A readable format: its name, the library that reads it, the reader, and the pip extra
+    that installs the library when it is not a dependency of ipfit."""
 
     name: str
     library: str
     reader: Callable[[Path, bytes], Raw]
+    extra: str | None = None
 
 
+_GLTF = Format("glTF 2.0 / GLB (every mesh of the scene, node transforms applied)", "trimesh", read_gltf)
+_TABLE = Format("text table: x y [z] [nx ny [nz]], optional header", "numpy", read_text)
+_NUMPY = Format("NumPy array (N, 2|3|4|6) or archive (points, normals)", "numpy", read_npy)
+_LAS = Format("LAS / LAZ (LiDAR; scales and offsets applied)", "laspy + lazrs", read_las, "scanners")
 FORMATS: dict[str, Format] = {
-    ".ply": Format("PLY (ASCII or binary)", "plyfile", read_ply),
+    ".ply": Format("PLY, ASCII or binary", "plyfile", read_ply),
     ".obj": Format("Wavefront OBJ", "trimesh", read_obj),
     ".off": Format("OFF / NOFF", "trimesh", read_off),
-    ".stl": Format("STL (ASCII or binary)", "trimesh", read_stl),
-    ".glb": Format("glTF 2.0 binary (scenes merged, transforms applied)", "trimesh", read_gltf),
-    ".gltf": Format("glTF 2.0 (scenes merged, transforms applied)", "trimesh", read_gltf),
-    ".xyz": Format("XYZ text table", "numpy", read_text),
-    ".txt": Format("text table", "numpy", read_text),
-    ".csv": Format("CSV table", "numpy", read_text),
-    ".npy": Format("NumPy array", "numpy", read_npy),
-    ".npz": Format("NumPy archive", "numpy", read_npz),
-    ".las": Format("LAS (LiDAR)", f"laspy [{SCANNERS_EXTRA}]", read_las),
-    ".laz": Format("LAZ (compressed LAS)", f"laspy + lazrs [{SCANNERS_EXTRA}]", read_las),
-    ".pcd": Format("PCD, ASCII or binary (PCL, ROS)", f"pypcd4 [{SCANNERS_EXTRA}]", read_pcd),
-    ".e57": Format("E57 (terrestrial scanners)", f"pye57 [{SCANNERS_EXTRA}]", read_e57),
-    **{suffix: Format("silhouette image (outer boundary traced)", "Pillow + scikit-image", read_image)
+    ".stl": Format("STL, ASCII or binary", "trimesh", read_stl),
+    ".glb": _GLTF,
+    ".gltf": _GLTF,
+    ".xyz": _TABLE,
+    ".txt": _TABLE,
+    ".csv": _TABLE,
+    ".npy": _NUMPY,
+    ".npz": _NUMPY._replace(reader=read_npz),
+    ".las": _LAS,
+    ".laz": _LAS,
+    ".pcd": Format("PCD, ASCII or binary (PCL, ROS)", "pypcd4", read_pcd, "scanners"),
+    ".e57": Format("E57 (terrestrial scanners; scan poses applied)", "pye57", read_e57, "scanners"),
+    **{suffix: Format("silhouette image (outline of the largest shape)", "Pillow + scikit-image", read_image)
        for suffix in IMAGE_SUFFIXES},
 }
 #: Extensions :func:`read_points` understands.
