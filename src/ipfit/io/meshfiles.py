@@ -247,14 +247,15 @@ def read_stl(path: Path, raw: bytes) -> Raw:
     if n_announced >= 0 and len(raw) == 84 + 50 * n_announced:
         return _read_trimesh(path, raw, "stl")  # binary
     try:
-        raw.decode("ascii")
+        is_text = raw.decode("ascii").lstrip().lower().startswith("solid")
     except UnicodeDecodeError:
-        expected = f"{84 + 50 * n_announced} bytes for the {n_announced} triangles its header announces" \
-            if n_announced >= 0 else "at least 84 bytes"
+        is_text = False
+    if not is_text:
+        expected = (f"{84 + 50 * n_announced} bytes for the {n_announced} triangles its header announces"
+                    if n_announced >= 0 else "at least 84 bytes")
         raise ReadError(f"{path}: not a valid STL file: as binary STL it should have {expected} but it has "
-                        f"{len(raw)}, and it is not text (ASCII STL) either. Check that the file is complete.") from None
-    if not raw.lstrip().lower().startswith(b"solid"):
-        raise ReadError(f"{path}: not a valid STL file: a text STL starts with 'solid'. Check the file's format.")
+                        f"{len(raw)}, and it is not a text STL either (those start with 'solid'). "
+                        "Check that the file is complete.")
     return _read_trimesh(path, raw, "stl")
 
 

@@ -96,6 +96,10 @@ def _columns(path: Path, table: NDArray, names: list[str] | None) -> Raw:
             wanted = list(candidate[:len(axes)])
             if set(wanted) <= set(names):
                 return Raw(points, table[:, [names.index(a) for a in wanted]])
+        partial = [name for candidate in _NORMAL_NAMES for name in candidate if name in names]
+        if partial:
+            return Raw(points, dropped_normals=f"the header names {', '.join(partial)} but not all "
+                                              f"{len(axes)} normal components")
         return Raw(points)
     return _positional(path, table)
 
