@@ -10,6 +10,7 @@ normals extension (``nor:normalX``...).
 from __future__ import annotations
 
 import io as _io
+import struct
 from pathlib import Path
 
 import numpy as np
@@ -31,9 +32,69 @@ def _normal_columns(names, get) -> np.ndarray | None:
     return None
 
 
+# LAZ compresses point records about 5-15 times; a header announcing more than this many times
+# the file's size cannot be right, and the decompressor would abort the process allocating it.
+_LAZ_MAX_RATIO = 1000
+_LAZ_MAX_CHUNK = 10_000_000
+_LAZ_VARIABLE_CHUNKS = 0xFFFFFFFF
+
+
+def _check_las_structure(path: Path, raw: bytes) -> None:
+    """Check the counts a LAS/LAZ header announces against the file, before decompressing.
+
+    lazrs (Rust) aborts the whole process, uncatchably, when a corrupted chunk table or count
+    makes it allocate terabytes; these are the fields it trusts.
+    """
+    if len(raw) < 227 or raw[:4] != b"LASF":
+        raise ReadError(f"{path}: not a LAS/LAZ file (it should start with 'LASF' and a 227-byte header).")
+    header_size, to_points, n_vlrs = struct.unpack_from("<HII", raw, 94)
+    point_format, record_length, legacy_count = struct.unpack_from("<BHI", raw, 104)
+    count = legacy_count
+    if raw[25] >= 4 and header_size >= 255 and len(raw) >= 255:
+        count = max(count, struct.unpack_from("<Q", raw, 247)[0])
+    if not header_size <= to_points <= len(raw):
+        raise ReadError(f"{path}: the header puts the points at byte {to_points} of a {len(raw)}-byte file. "
+                        "The file is truncated or corrupted.")
+    compressed = bool(point_format & 0xC0)
+    needed = count * record_length
+    available = len(raw) - to_points
+    if needed > (available * _LAZ_MAX_RATIO if compressed else available):
+        raise ReadError(f"{path}: the header announces {count} points of {record_length} bytes but the file holds "
+                        f"only {available} bytes of point data. The file is truncated or corrupted.")
+    if not compressed:
+        return
+    chunk_size = _laszip_chunk_size(path, raw, header_size, n_vlrs)
+    if chunk_size != _LAZ_VARIABLE_CHUNKS and chunk_size > _LAZ_MAX_CHUNK:
+        raise ReadError(f"{path}: the LAZ header announces chunks of {chunk_size} points. The file is corrupted.")
+    table = struct.unpack_from("<q", raw, to_points)[0] if available >= 8 else -1
+    if table == -1:
+        return
+    if not to_points + 8 <= table <= len(raw) - 8:
+        raise ReadError(f"{path}: the LAZ chunk table is announced at byte {table} of a {len(raw)}-byte file. "
+                        "The file is truncated or corrupted.")
+    version, n_chunks = struct.unpack_from("<II", raw, table)
+    if version != 0 or n_chunks > max(count, 1):
+        raise ReadError(f"{path}: the LAZ chunk table announces {n_chunks} chunks for {count} points. "
+                        "The file is corrupted.")
+
+
+def _laszip_chunk_size(path: Path, raw: bytes, header_size: int, n_vlrs: int) -> int:
+    at = header_size
+    for _ in range(min(n_vlrs, 10_000)):
+        if at + 54 > len(raw):
+            break
+        user_id = raw[at + 2:at + 18].rstrip(b"\0")
+        record_id, length = struct.unpack_from("<HH", raw, at + 18)
+        if user_id == b"laszip encoded" and record_id == 22204 and length >= 16 and at + 54 + 16 <= len(raw):
+            return struct.unpack_from("<I", raw, at + 54 + 12)[0]
+        at += 54 + length
+    raise ReadError(f"{path}: compressed points but no LASzip description in the header. The file is corrupted.")
+
+
 def read_las(path: Path, raw: bytes) -> Raw:
     laspy = optional_module("laspy", path, "LAS/LAZ")
-    if path.suffix.lower() == ".laz" or raw[:4] == b"LASF" and b"laszip" in raw[:4096].lower():
+    _check_las_structure(path, raw)
+    if raw[104] & 0xC0:
         optional_module("lazrs", path, "LAZ")
     las = laspy.read(_io.BytesIO(raw))
     # x, y, z are the stored integers times the header's scales plus its offsets, in float64
