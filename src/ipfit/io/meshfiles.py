@@ -137,35 +137,47 @@ def _trimesh_parts(result) -> list[dict]:
     return [result] if isinstance(result, dict) else []
 
 
+def _merge_parts(path: Path, parts: list[tuple[dict, np.ndarray | None]], empty: str) -> Raw:
+    """One cloud from trimesh's per-mesh dicts, each moved by its 4x4 transform (or None)."""
+    points, normals, faces = [], [], []
+    offset = 0
+    dropped = None
+    for part, transform in parts:
+        v = part.get("vertices")
+        if v is None or len(v) == 0:
+            continue  # point-less geometry: paths, cameras...
+        v = np.asarray(v, dtype=np.float64).reshape(len(v), -1)
+        vn = part.get("vertex_normals")
+        if vn is not None and np.shape(vn) != v.shape:
+            dropped = f"{len(vn)} normals for {len(v)} vertices"
+            vn = None
+        vn = None if vn is None else np.asarray(vn, dtype=np.float64)
+        if transform is not None:
+            linear = transform[:3, :3]
+            v = v @ linear.T + transform[:3, 3]
+            # normals move with the inverse transpose of the linear part (non-uniform scales)
+            vn = None if vn is None else vn @ np.linalg.inv(linear)
+        points.append(v)
+        normals.append(vn)
+        f = part.get("faces")
+        if f is not None and len(f):
+            faces.append(np.asarray(f, dtype=np.int64).reshape(len(f), -1)[:, :3] + offset)
+        offset += len(v)
+    if not points:
+        raise ReadError(f"{path}: {empty}")
+    nrm = np.concatenate(normals) if all(n is not None for n in normals) else None
+    return Raw(np.concatenate(points), nrm, np.concatenate(faces) if faces else None,
+               "file" if nrm is not None else None, dropped)
+
+
 def _read_trimesh(path: Path, raw: bytes, kind: str) -> Raw:
     from trimesh.exchange.load import mesh_loaders
 
     kwargs = {"skip_materials": True} if kind == "obj" else {}
     with quiet_logger("trimesh"):
         parts = _trimesh_parts(mesh_loaders[kind](_io.BytesIO(raw), file_type=kind, **kwargs))
-    points, normals, faces = [], [], []
-    offset = 0
-    dropped = None
-    for part in parts:
-        v = part.get("vertices")
-        if v is None or len(v) == 0:
-            continue
-        v = np.asarray(v, dtype=np.float64).reshape(len(v), -1)
-        points.append(v)
-        vn = part.get("vertex_normals")
-        if vn is not None and np.shape(vn) != v.shape:
-            dropped = f"{len(vn)} normals for {len(v)} vertices"
-            vn = None
-        normals.append(None if vn is None else np.asarray(vn, dtype=np.float64))
-        f = part.get("faces")
-        if f is not None and len(f):
-            faces.append(np.asarray(f, dtype=np.int64).reshape(len(f), -1)[:, :3] + offset)
-        offset += len(v)
-    if not points:
-        raise ReadError(f"{path}: no vertices found. Check that it is a valid {kind.upper()} file with vertices.")
-    nrm = np.concatenate(normals) if all(n is not None for n in normals) else None
-    return Raw(np.concatenate(points), nrm, np.concatenate(faces) if faces else None,
-               "file" if nrm is not None else None, dropped)
+    return _merge_parts(path, [(part, None) for part in parts],
+                        f"no vertices found. Check that it is a valid {kind.upper()} file with vertices.")
 
 
 def _written_2d(raw: bytes, data: Raw) -> Raw:
@@ -274,26 +286,9 @@ def read_gltf(path: Path, raw: bytes) -> Raw:
         scene = trimesh.load_scene(_io.BytesIO(raw), file_type="glb" if binary else "gltf", resolver=resolver,
                                    process=False)
     geometry = parsed.get("geometry", {})
-    points, normals, faces = [], [], []
-    offset = 0
+    parts = []
     for node in scene.graph.nodes_geometry:
         transform, name = scene.graph[node]
-        part = geometry.get(name)
-        if not isinstance(part, dict) or len(part.get("vertices", ())) == 0:
-            continue  # point clouds and paths without vertices, cameras...
-        v = np.asarray(part["vertices"], dtype=np.float64)
-        linear, shift = transform[:3, :3], transform[:3, 3]
-        points.append(v @ linear.T + shift)
-        vn = part.get("vertex_normals")
-        # normals move with the inverse transpose of the linear part (non-uniform scales)
-        normals.append(None if vn is None or np.shape(vn) != v.shape
-                       else np.asarray(vn, dtype=np.float64) @ np.linalg.inv(linear))
-        f = part.get("faces")
-        if f is not None and len(f):
-            faces.append(np.asarray(f, dtype=np.int64).reshape(len(f), -1)[:, :3] + offset)
-        offset += len(v)
-    if not points:
-        raise ReadError(f"{path}: no meshes with vertices in the scene. Export the model's geometry.")
-    nrm = np.concatenate(normals) if all(n is not None for n in normals) else None
-    return Raw(np.concatenate(points), nrm, np.concatenate(faces) if faces else None,
-               "file" if nrm is not None else None)
+        if isinstance(geometry.get(name), dict):
+            parts.append((geometry[name], np.asarray(transform, dtype=np.float64)))
+    return _merge_parts(path, parts, "no meshes with vertices in the scene. Export the model's geometry.")
