@@ -182,5 +182,11 @@ def test_fit_end_to_end_on_a_laz_with_max_points(tmp_path, world_cloud, capsys):
     path = tmp_path / "scan.laz"
     las_file(path, *world_cloud)
     result = _fit(tmp_path, path, "--max-points", "300")
-    assert result["selected_degree"] == 2
+    assert result["selected_degree"] == 2 and result["input"]["n_points"] == 300
     assert "kept 300 of the file's 600 points" in capsys.readouterr().err
+
+
+def test_fit_max_points_on_a_bundled_dataset(tmp_path, capsys):
+    result = _fit(tmp_path, "bunny_res4", "--max-points", "100")
+    assert result["selected_degree"] == 2 and result["input"]["n_points"] == 100
+    assert "kept 100 of its 453 points" in capsys.readouterr().err

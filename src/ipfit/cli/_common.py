@@ -46,6 +46,11 @@ def load_input(spec: str, max_points: int | None = None) -> Input:
         return Input(cloud.points, cloud.normals, path.stem, faces)
     if spec in bundled.dataset_names():
         points, normals = bundled.load_dataset(spec)
+        if max_points is not None and len(points) > max_points:
+            keep = np.sort(np.random.default_rng(0).choice(len(points), max_points, replace=False))
+            print(f"ipfit: {spec}: kept {max_points:,} of its {len(points):,} points (--max-points, fixed seed)",
+                  file=sys.stderr)
+            return Input(points[keep], normals[keep], spec)
         return Input(points, normals, spec, bundled.dataset_faces(spec))
     names = ", ".join(bundled.dataset_names())
     raise ReadError(f"{spec}: no such file, nor a bundled dataset name ({names}). Check the path.")
