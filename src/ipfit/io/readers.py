@@ -55,6 +55,8 @@ class PointCloud(_Pair):
         How many points were kept (``len(points)``).
     """
 
+    normals_source: str | None = None  # class defaults for copies made by _replace / _make
+
     def __new__(cls, points, normals, normals_source: str | None = None, n_file: int | None = None):
         self = super().__new__(cls, points, normals)
         self.normals_source = None if normals is None else (normals_source or "file")
@@ -64,6 +66,11 @@ class PointCloud(_Pair):
     @property
     def n_kept(self) -> int:
         return len(self.points)
+
+    def __getattr__(self, name: str):
+        if name == "n_file":  # a copy made by _replace / _make: no count recorded
+            return len(self.points)
+        raise AttributeError(name)
 
 
 class Mesh(NamedTuple):
@@ -239,7 +246,9 @@ def _parse(path: Path) -> tuple[Raw, int]:
     except MemoryError:
         raise ReadError(f"{path}: the file announces more data than fits in memory. "
                         "Check that it is not corrupted.") from None
-    except Exception as exc:  # third-party parsers raise anything on malformed input
+    except (KeyboardInterrupt, SystemExit):
+        raise
+    except BaseException as exc:  # parsers raise anything on malformed input (Rust panics are BaseExceptions)
         raise ReadError(f"{path}: not a valid {fmt.name} file ({short(exc)}). "
                         "Check that the file is complete and of the format its extension says.") from None
     return data, len(data.points)

@@ -55,6 +55,14 @@ def _check_las_structure(path: Path, raw: bytes) -> None:
     if not header_size <= to_points <= len(raw):
         raise ReadError(f"{path}: the header puts the points at byte {to_points} of a {len(raw)}-byte file. "
                         "The file is truncated or corrupted.")
+    if n_vlrs * 54 > to_points - header_size:
+        raise ReadError(f"{path}: the header announces {n_vlrs} variable-length records before byte {to_points}, "
+                        "more than fit. The file is corrupted.")
+    if raw[25] >= 4 and header_size >= 375 and len(raw) >= 375:
+        evlr_start, n_evlrs = struct.unpack_from("<QI", raw, 235)
+        if n_evlrs and (evlr_start > len(raw) or n_evlrs * 60 > len(raw) - evlr_start):
+            raise ReadError(f"{path}: the header announces {n_evlrs} extended records at byte {evlr_start} of a "
+                            f"{len(raw)}-byte file. The file is truncated or corrupted.")
     compressed = bool(point_format & 0xC0)
     needed = count * record_length
     available = len(raw) - to_points
