@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from ipfit import io
-from ipfit.exceptions import IpfitError
+from ipfit.exceptions import IpfitError, NormalsDroppedWarning
 
 HUGE_TEXT = [b"1e308", b"-1.7976931348623157e308", b"1e-320", b"4e-308", b"2147483648", b"-1", b"99999999999999999999",
              b"1e999", b"0", b"-0", b"nan", b"inf"]
@@ -140,7 +140,7 @@ def read_outcome(path: Path) -> tuple[str, str]:
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("error")  # a numpy warning escaping is foreign
-            warnings.simplefilter("ignore", io.readers.NormalsDroppedWarning)  # ours, on purpose
+            warnings.simplefilter("ignore", NormalsDroppedWarning)  # ours, on purpose
             cloud = io.read_points(path)
     except IpfitError as exc:
         message = str(exc)

@@ -91,6 +91,14 @@ def test_huge_and_tiny_normals_keep_their_direction(tmp_path, name, text):
     np.testing.assert_allclose(normals, [[1, 0], [0, 1], [-0.6, 0.8]])
 
 
+def test_subnormal_normals_come_back_with_unit_length(tmp_path):
+    path = tmp_path / "s.xyz"
+    path.write_text("0 0 1e-310 1e-310\n1 0 0 3e-320\n0 1 -1 0\n")
+    normals = _read_clean(path).normals
+    np.testing.assert_allclose(np.linalg.norm(normals, axis=1), 1.0, rtol=1e-15)
+    np.testing.assert_allclose(normals, [[2 ** -0.5, 2 ** -0.5], [0, 1], [-1, 0]], rtol=1e-15)
+
+
 def test_all_zero_normals_are_dropped_with_one_warning(tmp_path):
     path = tmp_path / "z.csv"
     path.write_text("x,y,z,nx,ny,nz\n0,0,0,0,0,0\n1,0,0,0,0,0\n0,1,0,0,0,0\n0,0,1,0,0,0\n")
