@@ -18,11 +18,12 @@ with the file's path.
 from .mesh import (Merged, face_normals, fill_missing_normals, merge_duplicates, outward_vertices,
                    vertex_normals_from_faces, winding_number)
 from .readers import FORMATS, READ_FORMATS, Format, Mesh, PointCloud, read_mesh, read_points
-from .silhouettes import CONTOUR_SPAN, trace_silhouette
+from .silhouettes import CONTOUR_SPAN, IMAGE_SUFFIXES, trace_silhouette
 from .writers import WRITE_FORMATS, write_points
 
-# the pre-package name, still used by callers outside this package
+# the pre-package names, still used by callers outside this package
 _complete = fill_missing_normals
+_IMAGE_SUFFIXES = IMAGE_SUFFIXES
 
 __all__ = [
     "PointCloud",
@@ -43,4 +44,5 @@ __all__ = [
     "READ_FORMATS",
     "WRITE_FORMATS",
     "CONTOUR_SPAN",
+    "IMAGE_SUFFIXES",
 ]
