@@ -78,6 +78,8 @@ def make_seeds(folder: Path) -> dict[str, Path]:
     put("ply-mesh", "m.ply").write_bytes(trimesh.exchange.ply.export_ply(ball, encoding="ascii"))
     put("glb", "m.glb").write_bytes(trimesh.Scene([ball, ball.copy().apply_translation([3, 0, 0])]).export(
         file_type="glb"))
+    put("3mf", "m.3mf").write_bytes(trimesh.Scene([ball, ball.copy().apply_translation([3, 0, 0])]).export(
+        file_type="3mf"))
     yy, xx = np.mgrid[:24, :24]
     disc = ((xx - 12) ** 2 + (yy - 11) ** 2 < 60).astype(np.uint8) * 255
     Image.fromarray(disc).save(put("png", "s.png"))

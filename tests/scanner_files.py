@@ -1,5 +1,5 @@
 """Small scanner and scene files written with the same libraries ipfit reads them with:
-multi-mesh GLB, LAS/LAZ with offsets and scales, PCD (ASCII, binary, compressed), E57 with
+multi-mesh GLB and 3MF, LAS/LAZ with offsets and scales, PCD (ASCII, binary, compressed), E57 with
 surface normals and scan poses. Used by test_io_scanners.py and as seeds by fuzz_readers.py."""
 
 from __future__ import annotations
@@ -16,8 +16,8 @@ def unit(v):
     return v / np.linalg.norm(v, axis=1, keepdims=True)
 
 
-def glb_scene(path: Path):
-    """A GLB with three meshes under moved, rotated and scaled nodes; returns the trimesh scene."""
+def glb_scene(path: Path, file_type: str = "glb"):
+    """A GLB (or 3MF) with three meshes under moved, rotated and scaled nodes; returns the scene."""
     import trimesh
     from trimesh import transformations as tf
 
@@ -30,7 +30,8 @@ def glb_scene(path: Path):
                                                          tf.scale_matrix(2.0)))
     scene.add_geometry(trimesh.creation.cylinder(radius=0.5, height=1.0, sections=12), geom_name="can",
                        node_name="can", transform=tf.rotation_matrix(np.pi / 2, [0.0, 0.0, 1.0]))
-    Path(path).write_bytes(scene.export(file_type="glb", include_normals=True))
+    options = {"include_normals": True} if file_type == "glb" else {}
+    Path(path).write_bytes(scene.export(file_type=file_type, **options))
     return scene
 
 

@@ -45,6 +45,20 @@ def test_multi_mesh_glb_is_merged_with_its_node_transforms(tmp_path):
     assert io.read_points(path).normals_source == "file"
 
 
+def test_multi_mesh_3mf_is_merged_with_its_build_transforms(tmp_path):
+    path = tmp_path / "scene.3mf"
+    scene = glb_scene(path, "3mf")
+    moved = [scene.geometry[name].copy().apply_transform(transform)
+             for transform, name in (scene.graph[node] for node in scene.graph.nodes_geometry)]
+    expected = np.concatenate([m.vertices for m in moved])
+    mesh = io.read_mesh(path, merge=False)
+    assert len(mesh.points) == len(expected) and len(mesh.faces) == sum(len(m.faces) for m in moved)
+    distance, row = cKDTree(mesh.points).query(expected)
+    assert distance.max() < 1e-5 and len(set(row)) == len(expected)
+    cloud = io.read_points(path)
+    assert cloud.normals_source == "faces"  # 3MF stores no normals
+
+
 def test_glb_without_normals_takes_them_from_the_faces(tmp_path):
     path = tmp_path / "ball.glb"
     ball = trimesh.creation.icosphere(subdivisions=2)
@@ -141,7 +155,7 @@ def test_max_points_on_a_mesh_keeps_face_normals(tmp_path):
     np.testing.assert_allclose(np.einsum("ij,ij->i", cloud.normals, unit(cloud.points)), 1.0, atol=0.01)
 
 
-@pytest.mark.parametrize("suffix", [".las", ".pcd", ".e57", ".glb"])
+@pytest.mark.parametrize("suffix", [".las", ".pcd", ".e57", ".glb", ".3mf"])
 def test_corrupted_scanner_files_give_one_line(tmp_path, suffix):
     path = tmp_path / f"bad{suffix}"
     path.write_bytes(b"LASF" + b"\x07" * 300 if suffix == ".las" else b"\x00garbage" * 40)

@@ -1,10 +1,10 @@
-"""Readers of mesh files: PLY (plyfile), OBJ, OFF, STL and glTF/GLB scenes (trimesh).
+"""Readers of mesh files: PLY (plyfile), OBJ, OFF, STL and glTF/GLB/3MF scenes (trimesh).
 
 Each reader takes the path and the file's bytes and returns a :class:`~ipfit.io._base.Raw`
 (points, the file's vertex normals, triangles). The structure the libraries trust blindly
 (PLY element counts, OFF counts, STL triangle counts, text encodings) is checked here first,
 so that a corrupted file gives one line saying what is wrong rather than the library's
-stumble. glTF scenes with several meshes are merged with each node's transform applied.
+stumble. Scenes with several meshes are merged with each node's transform applied.
 """
 
 from __future__ import annotations
@@ -17,9 +17,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..exceptions import ReadError
-from ._base import IPFIT_2D, Raw, quiet_logger, short
+from ._base import IPFIT_2D, Raw, optional_module, quiet_logger, short
 
-__all__ = ["read_ply", "read_obj", "read_off", "read_stl", "read_gltf"]
+__all__ = ["read_ply", "read_obj", "read_off", "read_stl", "read_scene"]
 
 _PLY_SIZES = {"char": 1, "int8": 1, "uchar": 1, "uint8": 1, "short": 2, "int16": 2, "ushort": 2, "uint16": 2,
               "int": 4, "int32": 4, "uint": 4, "uint32": 4, "float": 4, "float32": 4, "double": 8, "float64": 8}
@@ -271,20 +271,27 @@ def read_stl(path: Path, raw: bytes) -> Raw:
     return _read_trimesh(path, raw, "stl")
 
 
-def read_gltf(path: Path, raw: bytes) -> Raw:
-    """glTF 2.0 (.gltf with its buffers beside it, or .glb): every mesh of the default scene,
+def read_scene(path: Path, raw: bytes) -> Raw:
+    """glTF 2.0 (.gltf with its buffers beside it, or .glb) and 3MF: every mesh of the scene,
     each moved by its node's transform, merged into one cloud."""
     import trimesh
-    from trimesh.exchange import gltf
     from trimesh.resolvers import FilePathResolver
 
-    binary = raw[:4] == b"glTF"
-    resolver = None if binary else FilePathResolver(str(path))
+    if path.suffix.lower() == ".3mf":
+        optional_module("lxml", path, "3MF")
+        from trimesh.exchange.threemf import load_3MF
+
+        kind, load, kwargs = "3mf", load_3MF, {}
+    else:
+        from trimesh.exchange import gltf
+
+        binary = raw[:4] == b"glTF"
+        kind, load = ("glb", gltf.load_glb) if binary else ("gltf", gltf.load_gltf)
+        kwargs = {"resolver": None if binary else FilePathResolver(str(path)), "merge_primitives": True,
+                  "skip_materials": True}
     with quiet_logger("trimesh"):
-        load = gltf.load_glb if binary else gltf.load_gltf
-        parsed = load(_io.BytesIO(raw), resolver=resolver, merge_primitives=True, skip_materials=True)
-        scene = trimesh.load_scene(_io.BytesIO(raw), file_type="glb" if binary else "gltf", resolver=resolver,
-                                   process=False)
+        parsed = load(_io.BytesIO(raw), **kwargs)
+        scene = trimesh.load_scene(_io.BytesIO(raw), file_type=kind, resolver=kwargs.get("resolver"), process=False)
     geometry = parsed.get("geometry", {})
     parts = []
     for node in scene.graph.nodes_geometry:

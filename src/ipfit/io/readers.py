@@ -26,7 +26,7 @@ from .._validation import check_int, check_rng
 from ..exceptions import NormalsDroppedWarning, ReadError
 from ._base import MIN_POINTS, Raw, as_path, short
 from .mesh import fill_missing_normals, merge_duplicates, vertex_normals_from_faces
-from .meshfiles import read_gltf, read_obj, read_off, read_ply, read_stl
+from .meshfiles import read_obj, read_off, read_ply, read_scene, read_stl
 from .scanners import read_e57, read_las, read_pcd
 from .silhouettes import IMAGE_SUFFIXES, read_image
 from .tables import read_npy, read_npz, read_text
@@ -92,7 +92,7 @@ class Format(NamedTuple):
     extra: str | None = None
 
 
-_GLTF = Format("glTF 2.0 / GLB (every mesh of the scene, node transforms applied)", "trimesh", read_gltf)
+_GLTF = Format("glTF 2.0 / GLB (every mesh of the scene, node transforms applied)", "trimesh", read_scene)
 _TABLE = Format("text table: x y [z] [nx ny [nz]], optional header", "numpy", read_text)
 _NUMPY = Format("NumPy array (N, 2|3|4|6) or archive (points, normals)", "numpy", read_npy)
 _LAS = Format("LAS / LAZ (LiDAR; scales and offsets applied)", "laspy + lazrs", read_las, "scanners")
@@ -103,6 +103,8 @@ FORMATS: dict[str, Format] = {
     ".stl": Format("STL, ASCII or binary", "trimesh", read_stl),
     ".glb": _GLTF,
     ".gltf": _GLTF,
+    ".3mf": Format("3MF (3D printing; every mesh of the build, transforms applied)", "trimesh + lxml", read_scene,
+                   "scanners"),
     ".xyz": _TABLE,
     ".txt": _TABLE,
     ".csv": _TABLE,
@@ -127,7 +129,7 @@ def read_points(path: str | os.PathLike, *, merge: bool = True, face_normals: bo
     ----------
     path : str or path
         Any suffix of :data:`READ_FORMATS`: ``.ply``, ``.obj``, ``.off``, ``.stl``, ``.glb``,
-        ``.gltf``, ``.xyz``, ``.txt``, ``.csv``, ``.npy``, ``.npz``, ``.las``, ``.laz``,
+        ``.gltf``, ``.3mf``, ``.xyz``, ``.txt``, ``.csv``, ``.npy``, ``.npz``, ``.las``, ``.laz``,
         ``.pcd``, ``.e57`` or a silhouette image (``.png``, ``.gif``, ``.bmp``, ``.tif``,
         ``.jpg``...; the outer boundary of the largest shape, traced at subpixel precision,
         x right and y up in pixel units, with outward normals).
