@@ -14,6 +14,7 @@ tables, scanners) and add a line to :data:`FORMATS`.
 from __future__ import annotations
 
 import os
+import re
 import warnings
 from pathlib import Path
 from typing import Callable, NamedTuple
@@ -90,6 +91,11 @@ class Format(NamedTuple):
     library: str
     reader: Callable[[Path, bytes], Raw]
     extra: str | None = None
+
+    @property
+    def short_name(self) -> str:
+        """The name without its notes, for messages: "PLY", "LAS / LAZ", "text table"."""
+        return re.split(r"[,:(]", self.name)[0].strip()
 
 
 _GLTF = Format("glTF 2.0 / GLB (every mesh of the scene, node transforms applied)", "trimesh", read_scene)
@@ -251,7 +257,7 @@ def _parse(path: Path) -> tuple[Raw, int]:
     except (KeyboardInterrupt, SystemExit):
         raise
     except BaseException as exc:  # parsers raise anything on malformed input (Rust panics are BaseExceptions)
-        raise ReadError(f"{path}: not a valid {fmt.name} file ({short(exc)}). "
+        raise ReadError(f"{path}: not a valid {fmt.short_name} file ({short(exc)}). "
                         "Check that the file is complete and of the format its extension says.") from None
     return data, len(data.points)
 
