@@ -1,5 +1,7 @@
 """The bundled datasets: names, credits, files, points and reference normals."""
 
+import hashlib
+from pathlib import Path
 import numpy as np
 import pytest
 
@@ -52,9 +54,25 @@ def test_contour_normals_come_from_the_order():
     np.testing.assert_allclose(normals, contour_normals(points, span=2))
 
 
-def test_bundled_files_are_the_shared_ones(shared_data):
-    for path in bundled.DATA_DIR.glob("*/*"):
-        assert path.read_bytes() == (shared_data / path.parent.name / path.name).read_bytes(), path.name
+def test_bundled_files_are_the_published_ones():
+    """Checksums of the files as published (tests/data/bundled.sha256): a damaged or edited copy fails."""
+    manifest = (Path(__file__).with_name("data") / "bundled.sha256").read_text().split("\n")
+    expected = dict(reversed(line.split()) for line in manifest if line)
+    on_disk = {f"{p.parent.name}/{p.name}": hashlib.sha256(p.read_bytes()).hexdigest()
+               for p in bundled.DATA_DIR.glob("*/*")}
+    assert on_disk == expected
+
+
+def test_datasets_formats_lists_every_readable_suffix(capsys):
+    from ipfit import io
+    from ipfit.cli import main
+
+    assert main(["datasets", "--formats"]) == 0
+    out = capsys.readouterr().out
+    for suffix in io.READ_FORMATS:
+        assert f" {suffix}" in out or f"{suffix} " in out, suffix
+    for library in ("plyfile", "trimesh", "laspy + lazrs", "pypcd4", "pye57", "ipfit[scanners]"):
+        assert library in out
 
 
 @pytest.mark.parametrize("name", ["rabbit", "", None, 3])

@@ -2,6 +2,7 @@
 
 import io as pyio
 import os
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -15,6 +16,8 @@ from scipy.spatial import cKDTree
 from ipfit import io
 from ipfit.datasets.bundled import DATA_DIR
 from ipfit.exceptions import InvalidInputError, ReadError
+
+FIXTURES = Path(__file__).with_name("data")
 
 SHAPES = {"2d": ["boot.csv", "butterfly.csv", "airplane.csv", "boot.gif", "butterfly.gif"],
           "3d": ["bun_zipper.ply", "bun_zipper_res2.ply", "bun_zipper_res3.ply", "bun_zipper_res4.ply",
@@ -54,30 +57,36 @@ def test_the_list_covers_every_bundled_file():
     assert on_disk == sorted(SHAPES["2d"] + SHAPES["3d"])
 
 
-def test_contour_csv_keeps_its_order(shared_data):
-    points, _ = io.read_points(shared_data / "2d" / "boot.csv")
-    expected = np.loadtxt(shared_data / "2d" / "boot.csv", delimiter=",", skiprows=3)
+def test_contour_csv_keeps_its_order():
+    points, _ = io.read_points(FIXTURES / "boot.csv")
+    expected = np.loadtxt(FIXTURES / "boot.csv", delimiter=",", skiprows=3)
     np.testing.assert_array_equal(points, expected)
-    assert io.read_mesh(shared_data / "2d" / "boot.csv").normals is None
+    assert io.read_mesh(FIXTURES / "boot.csv").normals is None
 
 
-def test_duck_merges_to_5482_positions(shared_data):
-    mesh = io.read_mesh(shared_data / "3d" / "rubber_duck.ply")
-    assert len(mesh.points) == 5482
-    assert mesh.faces.shape == (10960, 3) and mesh.faces.max() < 5482
-    assert io.read_mesh(shared_data / "3d" / "rubber_duck.ply", merge=False).points.shape == (32575, 3)
+def test_duck_rows_split_per_face_merge_to_their_distinct_positions():
+    path = FIXTURES / "duck_patch.ply"
+    raw = PlyData.read(str(path))["vertex"]
+    distinct = {(x, y, z) for x, y, z in zip(raw["x"], raw["y"], raw["z"])}  # independent reference
+    mesh = io.read_mesh(path)
+    assert len(mesh.points) == len(distinct) < len(raw)
+    assert {tuple(p) for p in mesh.points.astype(np.float32)} == distinct
+    assert mesh.faces.shape == (150, 3) and mesh.faces.max() < len(distinct)
+    assert io.read_mesh(path, merge=False).points.shape == (len(raw), 3)
     # the file's flat per-face normals, averaged per position, agree with the faces' normals
     from_faces = io.vertex_normals_from_faces(mesh.points, mesh.faces)
     assert np.median(np.einsum("ij,ij->i", mesh.normals, from_faces)) > 0.99
 
 
-def test_bunny_normals_come_from_its_faces(shared_data):
-    path = shared_data / "3d" / "bun_zipper_res4.ply"
+def test_bunny_normals_come_from_its_faces():
+    path = FIXTURES / "bun_zipper_res4.ply"
     mesh = io.read_mesh(path)
     assert mesh.normals is None and mesh.faces.shape == (948, 3)
-    points, normals = io.read_points(path)
+    cloud = io.read_points(path)
+    points, normals = cloud
+    assert cloud.normals_source == "faces"
     from_faces = io.vertex_normals_from_faces(mesh.points, mesh.faces)
-    ok = np.isfinite(from_faces).all(axis=1)  # vertices only in zero-area faces borrow a neighbour's
+    ok = from_faces.any(axis=1)  # vertices only in zero-area faces borrow a neighbour's
     assert ok.mean() > 0.98
     np.testing.assert_allclose(normals[ok], from_faces[ok])
     assert io.read_points(path, face_normals=False).normals is None
@@ -85,22 +94,35 @@ def test_bunny_normals_come_from_its_faces(shared_data):
     assert np.mean(np.einsum("ij,ij->i", normals, points - points.mean(axis=0)) > 0) > 0.85
 
 
-def test_full_bunny_vertices_without_faces_get_a_neighbours_normal(shared_data):
-    points, normals = io.read_points(shared_data / "3d" / "bun_zipper.ply")
-    assert len(points) == 35_947 and np.isfinite(normals).all()
+def test_vertices_without_faces_get_their_nearest_neighbours_normal(tmp_path):
+    bunny = PlyData.read(str(FIXTURES / "bun_zipper_res4.ply"))
+    vertex = bunny["vertex"].data
+    extra = vertex[:3].copy()
+    for name in "xyz":
+        extra[name] = extra[name] + 1e-3  # three points beside the surface, in no face
+    bunny["vertex"].data = np.concatenate([vertex, extra])
+    bunny.write(str(tmp_path / "b.ply"))
+    points, normals = io.read_points(tmp_path / "b.ply")
+    mesh = io.read_mesh(tmp_path / "b.ply")
+    lonely = ~io.vertex_normals_from_faces(mesh.points, mesh.faces).any(axis=1)
+    assert lonely.sum() == 3 and np.isfinite(normals).all()
+    np.testing.assert_allclose(np.linalg.norm(normals, axis=1), 1.0)
+    nearest = cKDTree(points[~lonely]).query(points[lonely])[1]
+    np.testing.assert_array_equal(normals[lonely], normals[~lonely][nearest])
 
 
-def test_apple_keeps_its_own_normals(shared_data):
-    path = shared_data / "3d" / "apple.ply"
+def test_apple_keeps_its_own_normals():
+    path = FIXTURES / "apple_patch.ply"
     raw = PlyData.read(str(path))["vertex"]
-    points, normals = io.read_points(path)
-    np.testing.assert_allclose(points, np.column_stack([raw["x"], raw["y"], raw["z"]]))
-    np.testing.assert_allclose(normals, _unit(np.column_stack([raw["nx"], raw["ny"], raw["nz"]])), atol=1e-6)
+    cloud = io.read_points(path)
+    assert cloud.normals_source == "file"
+    np.testing.assert_allclose(cloud.points, np.column_stack([raw["x"], raw["y"], raw["z"]]))
+    np.testing.assert_allclose(cloud.normals, _unit(np.column_stack([raw["nx"], raw["ny"], raw["nz"]])), atol=1e-6)
 
 
-def test_boot_silhouette_traces_to_the_boot_contour(shared_data):
-    traced, normals = io.read_points(shared_data / "2d" / "boot.gif")
-    contour, _ = io.read_points(shared_data / "2d" / "boot.csv")
+def test_boot_silhouette_traces_to_the_boot_contour():
+    traced, normals = io.read_points(FIXTURES / "boot.gif")
+    contour, _ = io.read_points(FIXTURES / "boot.csv")
     assert abs(len(traced) - len(contour)) <= 5
     assert cKDTree(contour).query(traced)[0].max() < 0.5
     assert cKDTree(traced).query(contour)[0].max() < 0.5
@@ -307,7 +329,7 @@ def test_face_and_vertex_normals_are_area_weighted():
     np.testing.assert_allclose(io.face_normals(points, faces), [[0, 0, 1], [1, 0, 0]])
     vn = io.vertex_normals_from_faces(points, faces)
     np.testing.assert_allclose(vn[0], _unit(np.array([[1.0, 0, 100]]))[0])
-    assert np.isnan(io.vertex_normals_from_faces(np.vstack([points, [[5, 5, 5]]]), faces)[5]).all()
+    assert not io.vertex_normals_from_faces(np.vstack([points, [[5, 5, 5]]]), faces)[5].any()  # no direction: zero
 
 
 # -- silhouettes ---------------------------------------------------------------------------------
@@ -356,7 +378,7 @@ def test_silhouette_from_alpha_and_antialiasing(tmp_path):
 
 # -- bad files -----------------------------------------------------------------------------------
 
-def _bad_files(tmp_path, shared_data):
+def _bad_files(tmp_path):
     cases = {}
 
     def add(key, name, data, *words):
@@ -379,13 +401,13 @@ def _bad_files(tmp_path, shared_data):
     add("two points", "two.xyz", "1 2 3\n4 5 6\n", "only 2 points", "at least 3")
     add("duplicates", "dups.xyz", "1 2 3\n1 2 3\n4 5 6\n", "distinct")
     add("binary text", "bin.csv", b"\x89\xff\xfe\x00abc", "not a text file")
-    raw = (shared_data / "3d" / "bun_zipper_res4.ply").read_bytes()
+    raw = (FIXTURES / "bun_zipper_res4.ply").read_bytes()
     add("truncated ascii ply", "cut.ply", raw[: len(raw) // 2], "truncated")
-    ply = PlyData.read(str(shared_data / "3d" / "apple.ply"))
+    ply = PlyData.read(str(FIXTURES / "apple_patch.ply"))
     ply.text = False
     ply.write(str(tmp_path / "full_bin.ply"))
     data = (tmp_path / "full_bin.ply").read_bytes()
-    add("truncated binary ply", "cutbin.ply", data[: len(data) - 1000], "truncated")
+    add("truncated binary ply", "cutbin.ply", data[: len(data) - 100], "truncated")
     add("not a ply", "junk.ply", b"hello world\n", "not a valid ply")
     add("ply without vertices", "novert.ply", "ply\nformat ascii 1.0\nelement point 1\nproperty float a\n"
         "end_header\n1\n", "vertex")
@@ -395,7 +417,7 @@ def _bad_files(tmp_path, shared_data):
     np.save(npy, np.zeros((100, 3)))
     add("truncated npy", "cut.npy", npy.getvalue()[:300], "truncated")
     add("truncated npz", "cut.npz", b"PK\x03\x04" + b"\x00" * 20, "npz")
-    add("truncated image", "cut.gif", (shared_data / "2d" / "boot.gif").read_bytes()[:200], "image")
+    add("truncated image", "cut.gif", (FIXTURES / "boot.gif").read_bytes()[:200], "image")
     Image.fromarray(np.zeros((10, 10), dtype=np.uint8)).save(tmp_path / "black.png")
     cases["uniform image"] = (tmp_path / "black.png", ("uniform",))
     add("truncated off", "cut.off", "OFF\n4 4 6\n0 0 0\n1 0 0\n", "truncated")
@@ -404,8 +426,8 @@ def _bad_files(tmp_path, shared_data):
     return cases
 
 
-def test_bad_files_give_one_clear_line(tmp_path, shared_data):
-    for key, (path, words) in _bad_files(tmp_path, shared_data).items():
+def test_bad_files_give_one_clear_line(tmp_path):
+    for key, (path, words) in _bad_files(tmp_path).items():
         with pytest.raises(ReadError) as exc_info:
             io.read_points(path)
         try:
@@ -452,11 +474,10 @@ def test_plausible_headers_with_garbage_raise_only_read_error(tmp_path, data, pr
 
 
 @pytest.fixture(scope="module")
-def real_files(tmp_path_factory, shared_data):
+def real_files(tmp_path_factory):
     folder = tmp_path_factory.mktemp("real")
-    files = {name: (shared_data / sub / name).read_bytes()
-             for sub, name in [("3d", "bun_zipper_res4.ply"), ("3d", "apple.ply"), ("2d", "airplane.csv"),
-                               ("2d", "boot.gif"), ("2d", "butterfly.gif")]}
+    files = {name: (FIXTURES / name).read_bytes()
+             for name in ["bun_zipper_res4.ply", "apple_patch.ply", "boot.csv", "boot.gif", "duck_patch.ply"]}
     rng = np.random.default_rng(0)
     points, normals = rng.random((60, 3)), _unit(rng.normal(size=(60, 3)))
     for name in ("bin.ply", "cloud.npy", "cloud.npz", "cloud.xyz"):

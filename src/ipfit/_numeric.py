@@ -47,7 +47,9 @@ def unit_rows_mask(v: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.bool_]
     ok = (length > 0) & np.isfinite(length) & np.all(np.isfinite(a), axis=-1)
     out = np.zeros(a.shape)
     with np.errstate(over="ignore", invalid="ignore", under="ignore"):
-        out[ok] = a[ok] / length[ok][..., None]
+        # scaled by the largest entry first, so subnormal rows (1e-310) keep unit length too
+        scaled = a[ok] / np.max(np.abs(a[ok]), axis=-1, keepdims=True)
+        out[ok] = scaled / np.sqrt(np.sum(scaled * scaled, axis=-1, keepdims=True))
     return out, ok
 
 

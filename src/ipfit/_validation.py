@@ -50,6 +50,8 @@ def _describe(value: Any) -> str:
 
 def as_points(points: ArrayLike, name: str = "points", *, dims=(2, 3), min_points: int = 1) -> NDArray[np.float64]:
     """Return ``points`` as a C-contiguous float64 array of shape (N, D), D in ``dims``."""
+    if np.iscomplexobj(points):  # float64 conversion would drop the imaginary parts
+        raise error(name, "real coordinates", _describe(np.asarray(points)), "Pass the real parts (or np.abs) explicitly.")
     try:
         arr = np.asarray(points, dtype=np.float64)
     except (TypeError, ValueError):

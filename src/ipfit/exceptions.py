@@ -13,6 +13,7 @@ __all__ = [
     "ReadError",
     "IpfitWarning",
     "ConditioningWarning",
+    "NormalsDroppedWarning",
 ]
 
 
@@ -40,3 +41,8 @@ class IpfitWarning(UserWarning):
 
 class ConditioningWarning(IpfitWarning):
     """A linear system was rank deficient or badly conditioned; the fit may be unstable."""
+
+
+class NormalsDroppedWarning(IpfitWarning):
+    """A file's normals could not be used (all zero, or not one per point): they were dropped
+    or repaired, and ipfit takes them from the faces or estimates them instead."""

@@ -18,6 +18,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from . import basis
+from ._numeric import row_norms
 from ._result_schema import FORMAT_NAME, FORMAT_VERSION, parse_result_text, read_result_json, validate_result
 from ._validation import as_points, error
 from .exceptions import InvalidInputError, ReadError
@@ -67,7 +68,7 @@ class Normalization:
         """Centre at the mean and divide by the mean distance to it."""
         pts = as_points(points)
         center = pts.mean(axis=0)
-        scale = float(np.linalg.norm(pts - center, axis=1).mean())
+        scale = float(row_norms(pts - center).mean())  # no underflow for coordinates of 1e-200
         if not scale > 0:
             raise error("points", "points that are not all identical", "one repeated point",
                         "Pass a point cloud with some extent.")

@@ -25,21 +25,36 @@ class Input(NamedTuple):
     faces: np.ndarray | None = None
 
 
-def load_input(spec: str) -> Input:
-    """A path to a point file, or the name of a bundled dataset (``ipfit datasets``)."""
+def load_input(spec: str, max_points: int | None = None) -> Input:
+    """A path to a point file, or the name of a bundled dataset (``ipfit datasets``).
+
+    ``max_points`` keeps a fixed-seed random subset of a larger file (``--max-points``); the
+    counts read and kept are reported on stderr when it does.
+    """
+    import warnings
+
     from .. import io
     from ..datasets import bundled
 
     path = Path(spec)
     if path.exists():
-        cloud = io.read_points(path)
+        cloud = io.read_points(path, max_points=max_points)
         faces = None
-        if hasattr(io, "read_mesh") and path.suffix.lower() in {".ply", ".obj", ".off", ".stl"}:
-            with contextlib.suppress(Exception):
+        if cloud.n_kept < cloud.n_file and max_points is not None:
+            print(f"ipfit: {path}: kept {cloud.n_kept:,} of the file's {cloud.n_file:,} points "
+                  f"(--max-points {max_points}, fixed seed)", file=sys.stderr)
+        elif cloud.normals_source in ("faces", "file") or path.suffix.lower() in {".ply", ".obj", ".off", ".stl"}:
+            with warnings.catch_warnings():  # the first read already said what it had to say
+                warnings.simplefilter("ignore")
                 faces = io.read_mesh(path).faces
         return Input(cloud.points, cloud.normals, path.stem, faces)
     if spec in bundled.dataset_names():
         points, normals = bundled.load_dataset(spec)
+        if max_points is not None and len(points) > max_points:
+            keep = np.sort(np.random.default_rng(0).choice(len(points), max_points, replace=False))
+            print(f"ipfit: {spec}: kept {max_points:,} of its {len(points):,} points (--max-points, fixed seed)",
+                  file=sys.stderr)
+            return Input(points[keep], normals[keep], spec)
         return Input(points, normals, spec, bundled.dataset_faces(spec))
     names = ", ".join(bundled.dataset_names())
     raise ReadError(f"{spec}: no such file, nor a bundled dataset name ({names}). Check the path.")

@@ -79,6 +79,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--html", action="store_true",
                         help="also write PREFIX.html: an interactive viewer of every degree (works offline)")
     parser.add_argument("-q", "--quiet", action="store_true", help="no progress output")
+    parser.add_argument("--max-points", type=positive_int, metavar="N",
+                        help="keep a random subset of N points of a larger file (fixed seed; for big scans)")
 
 
 def search_settings(args: argparse.Namespace):
@@ -132,7 +134,7 @@ def run(args: argparse.Namespace) -> int:
     from ..adaptive import fit_adaptive
     from ..exceptions import InvalidInputError
 
-    data = load_input(args.input)
+    data = load_input(args.input, max_points=args.max_points)
     points, normals = data.points, data.normals
     dim = points.shape[1]
     degree = _parse_degree(args.degree, dim)

@@ -22,7 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..exceptions import InvalidInputError
-from ..io import CONTOUR_SPAN, PointCloud, _complete, read_mesh, read_points, vertex_normals_from_faces
+from ..io import CONTOUR_SPAN, PointCloud, fill_missing_normals, read_mesh, read_points, vertex_normals_from_faces
 
 __all__ = ["DatasetInfo", "list_datasets", "dataset_names", "dataset_path", "load_dataset", "dataset_faces",
            "DATA_DIR"]
@@ -114,7 +114,7 @@ def _load(name: str):
     if entry.normals == "file" and mesh.normals is not None:
         normals = mesh.normals
     else:
-        normals = _complete(mesh.points, vertex_normals_from_faces(mesh.points, mesh.faces))
+        normals = fill_missing_normals(mesh.points, vertex_normals_from_faces(mesh.points, mesh.faces))
     for arr in (mesh.points, normals, mesh.faces):
         arr.setflags(write=False)
     return mesh.points, normals, mesh.faces

@@ -1,0 +1,48 @@
+"""Reading and writing point clouds: points, normals and (for meshes) faces.
+
+The package, one concern per module:
+
+- :mod:`~ipfit.io.readers`: :func:`read_points`, :func:`read_mesh`, the registry of formats
+  (:data:`FORMATS`: suffix -> name, library, reader) and the checks every file gets;
+- :mod:`~ipfit.io.meshfiles`, :mod:`~ipfit.io.tables`, :mod:`~ipfit.io.scanners`: the format
+  readers (PLY/OBJ/OFF/STL/glTF; text and NumPy tables; LAS/LAZ, PCD, E57);
+- :mod:`~ipfit.io.silhouettes`: tracing the outline of a shape in an image;
+- :mod:`~ipfit.io.writers`: :func:`write_points`;
+- :mod:`~ipfit.io.mesh`: mesh geometry (merging split vertices, face and area-weighted vertex
+  normals, winding numbers: inside and outside of a mesh's solid).
+
+Every failure to read is a :class:`~ipfit.exceptions.ReadError` whose one-line message starts
+with the file's path.
+"""
+
+from .mesh import (Merged, face_normals, fill_missing_normals, merge_duplicates, outward_vertices,
+                   vertex_normals_from_faces, winding_number)
+from .readers import FORMATS, READ_FORMATS, Format, Mesh, PointCloud, read_mesh, read_points
+from .silhouettes import CONTOUR_SPAN, IMAGE_SUFFIXES, trace_silhouette
+from .writers import WRITE_FORMATS, write_points
+
+# the pre-package names, still used by callers outside this package
+_complete = fill_missing_normals
+_IMAGE_SUFFIXES = IMAGE_SUFFIXES
+
+__all__ = [
+    "PointCloud",
+    "Mesh",
+    "Merged",
+    "Format",
+    "read_points",
+    "read_mesh",
+    "write_points",
+    "merge_duplicates",
+    "face_normals",
+    "vertex_normals_from_faces",
+    "fill_missing_normals",
+    "winding_number",
+    "outward_vertices",
+    "trace_silhouette",
+    "FORMATS",
+    "READ_FORMATS",
+    "WRITE_FORMATS",
+    "CONTOUR_SPAN",
+    "IMAGE_SUFFIXES",
+]
