@@ -8,8 +8,9 @@ from ipfit.datasets import bundled, synthetic
 from ipfit.exceptions import InvalidInputError
 from ipfit.io import _complete, vertex_normals_from_faces
 from ipfit.solid import outward_vertices
-from ipfit.normals import (DEFAULT_K, _noise_scale, _pca_normals, contour_normals, estimate_normals,
-                           normal_agreement, orient_normals)
+from ipfit.normals import DEFAULT_K, contour_normals, estimate_normals, normal_agreement, orient_normals
+from ipfit.normals.local import pca_normals
+from ipfit.normals.scale import noise_scale
 
 
 def face_normals(name):
@@ -362,5 +363,5 @@ def test_clean_bundled_data_are_not_taken_for_noisy(name):
     points, _ = bundled.load_dataset(name)
     k = DEFAULT_K[points.shape[1]]
     _, idx = cKDTree(points).query(points, k)
-    _, flatness = _pca_normals(points, idx)
-    assert _noise_scale(points, idx, flatness, 1) is None
+    _, flatness = pca_normals(points, idx)
+    assert noise_scale(points, idx, flatness, 1) is None
