@@ -362,6 +362,7 @@ def test_clean_bundled_data_are_not_taken_for_noisy(name):
     """The noise handling leaves clean data to the fits above, however coarse (bunny_res4, airplane)."""
     points, _ = bundled.load_dataset(name)
     k = DEFAULT_K[points.shape[1]]
-    _, idx = cKDTree(points).query(points, k)
+    tree = cKDTree(points)
+    _, idx = tree.query(points, k)
     _, flatness = pca_normals(points, idx)
-    assert noise_scale(points, idx, flatness, 1) is None
+    assert noise_scale(points, tree, idx, flatness, 1) is None

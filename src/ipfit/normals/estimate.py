@@ -12,7 +12,9 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
 from .._validation import as_points, check_int, error
-from .local import _CHUNK, default_k, neighbours, pca_normals
+from .._numeric import row_norms, unit_rows_mask
+from .local import (blocks, check_flag, check_workers, covariances, default_k, neighbours, pca_normals,
+                    standardise)
 from .orient import orient_graph
 from .scale import noise_scale, orient_coarse
 
@@ -32,7 +34,7 @@ _CURVE_LINK_SLOPE = np.sin(np.radians(20.0))  # links across the curve: this clo
 _CURVE_REACH = 6
 
 
-def _refit_sampled_curves(points: NDArray, idx: NDArray[np.intp], normals: NDArray,
+def _refit_sampled_curves(points: NDArray, tree: cKDTree, idx: NDArray[np.intp], normals: NDArray,
                           workers: int) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
     """Normals across the curves of anisotropically sampled surfaces (3D), in place.
 
@@ -53,43 +55,38 @@ def _refit_sampled_curves(points: NDArray, idx: NDArray[np.intp], normals: NDArr
     none = np.empty(0, np.intp)
     if ks < 3 or n <= k:
         return none, none
-    nb = points[idx[:, :ks]]
-    centred = nb - nb.mean(axis=1, keepdims=True)
-    values, vectors = np.linalg.eigh(np.matmul(centred.transpose(0, 2, 1), centred))
+    values = np.empty((n, 3))
+    for rows in blocks(n, ks):
+        values[rows] = np.linalg.eigvalsh(covariances(points, idx[rows, :ks]))
     values = np.clip(values, 0.0, None)
     curve = np.flatnonzero(values[:, 1] < _CURVE_RATIO ** 2 * values[:, 2])
     if len(curve) == 0:
         return none, none
     link_lo, link_hi = [], []
     kb = min(_CURVE_REACH * k, n)
-    _, wide = cKDTree(points).query(points[curve], k=kb, workers=workers)
-    for start in range(0, len(curve), _CHUNK):
-        rows = slice(start, start + _CHUNK)
-        t = vectors[curve[rows], :, 2]
-        nb = points[wide[rows]]
-        centred = nb - nb.mean(axis=1, keepdims=True)
-        cov = np.matmul(centred.transpose(0, 2, 1), centred)
-        trace = np.trace(cov, axis1=1, axis2=2)
-        cov /= np.where(trace > 0, trace, 1.0)[:, None, None]
+    for rows in blocks(len(curve), kb):
+        at = curve[rows]
+        t = np.linalg.eigh(covariances(points, idx[at, :ks]))[1][:, :, 2]
+        wide = neighbours(tree, kb, workers, points[at])
+        cov = covariances(points, wide)
         tt = t[:, :, None] * t[:, None, :]
         proj = np.eye(3) - tt
         # Spread across t only, and t itself made the direction of most spread: the least
         # is then the normal, perpendicular to the curve.
         _, vectors_w = np.linalg.eigh(proj @ cov @ proj + 2.0 * tt)
         nrm = vectors_w[:, :, 0]
-        normals[curve[rows]] = nrm
-        step = nb - points[curve[rows]][:, None, :]
+        normals[at] = nrm
+        step = points[wide] - points[at][:, None, :]
         across = np.einsum("ikj,ij->ik", step, np.cross(nrm, t))
         along = np.abs(np.einsum("ikj,ij->ik", step, t))
         off = np.abs(np.einsum("ikj,ij->ik", step, nrm))
-        length = np.linalg.norm(step, axis=2)
-        fit = (np.abs(across) > along) & (off < _CURVE_LINK_SLOPE * length)
+        fit = (np.abs(across) > along) & (off < _CURVE_LINK_SLOPE * row_norms(step))
         for side in (across > 0, across < 0):
             cand = fit & side  # the wide neighbours come nearest first: take the first candidate
             has = cand.any(axis=1)
             first = np.argmax(cand, axis=1)
-            link_lo.append(curve[rows][has])
-            link_hi.append(wide[rows][has, first[has]])
+            link_lo.append(at[has])
+            link_hi.append(wide[has, first[has]])
     return np.concatenate(link_lo), np.concatenate(link_hi)
 
 
@@ -173,20 +170,24 @@ def estimate_normals(points: ArrayLike, k: int | None = None, *, orient: bool = 
     True
     """
     pts = as_points(points, min_points=3)
-    idx = neighbours(pts, default_k(k, pts.shape[1], len(pts)), workers)
+    k = default_k(k, pts.shape[1], len(pts))
+    orient = check_flag(orient, "orient")
+    workers = check_workers(workers)
+    pts = standardise(pts)
+    tree = cKDTree(pts)
+    idx = neighbours(tree, k, workers)
     normals, flatness = pca_normals(pts, idx)
-    scaled = noise_scale(pts, idx, flatness, workers)
+    scaled = noise_scale(pts, tree, idx, flatness, workers)
     if scaled is not None:
         # Noise-dominated: the normals of wider neighbourhoods, oriented on a denoised,
         # coarser sample of the shape (see orient_coarse).
-        return orient_coarse(pts, scaled, workers) if orient else scaled.normals
+        return orient_coarse(pts, tree, scaled, workers) if orient else scaled.normals
     links = None
     if pts.shape[1] == 2:
         _refit_along_curve(pts, idx, normals, flatness)
     else:
-        links = _refit_sampled_curves(pts, idx, normals, workers)
-    return orient_graph(pts, normals, idx, flatness, links) if orient else normals
-
+        links = _refit_sampled_curves(pts, tree, idx, normals, workers)
+    return orient_graph(pts, normals, idx, flatness, links, tree=tree) if orient else normals
 
 
 def contour_normals(points: ArrayLike, *, closed: bool = True, span: int = 1) -> NDArray[np.float64]:
@@ -208,7 +209,7 @@ def contour_normals(points: ArrayLike, *, closed: bool = True, span: int = 1) ->
     >>> contour_normals(square)[1].tolist()
     [0.0, -1.0]
     """
-    pts = as_points(points, dims=(2,), min_points=3)
+    pts = standardise(as_points(points, dims=(2,), min_points=3))  # the area below squares coordinates
     span = check_int(span, "span", minimum=1, maximum=max(1, (len(pts) - 1) // 2))
     if closed:
         nxt, prv = np.roll(pts, -span, axis=0), np.roll(pts, span, axis=0)
@@ -226,9 +227,8 @@ def contour_normals(points: ArrayLike, *, closed: bool = True, span: int = 1) ->
     normal = np.column_stack([tangent[:, 1], -tangent[:, 0]])  # right of travel: outward if counter-clockwise
     if twice_area < 0:
         normal = -normal
-    length = np.linalg.norm(normal, axis=1)
-    if not (length > 0).all():
+    normal, ok = unit_rows_mask(normal)
+    if not ok.all():
         raise error("points", "a contour without repeated consecutive points",
-                    f"{int((length == 0).sum())} points with no direction", "Remove repeated points first.")
-    return normal / length[:, None]
-
+                    f"{int((~ok).sum())} points with no direction", "Remove repeated points first.")
+    return normal

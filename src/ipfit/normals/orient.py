@@ -15,8 +15,9 @@ from scipy.sparse import csgraph
 from scipy.sparse.linalg import spsolve
 from scipy.spatial import ConvexHull, QhullError, cKDTree
 
+from .._numeric import unit_rows, unit_rows_mask
 from .._validation import as_points, error
-from .local import argmax_per_group, default_k, neighbours
+from .local import argmax_per_group, blocks, check_workers, default_k, neighbours, standardise
 
 __all__ = ["orient_normals"]
 
@@ -57,32 +58,40 @@ def orient_normals(points: ArrayLike, normals: ArrayLike, k: int | None = None, 
     if nrm.shape != pts.shape:
         raise error("normals", f"shape {pts.shape} to match the points", f"shape {nrm.shape}",
                     "Pass one normal per point.")
-    length = np.linalg.norm(nrm, axis=1)
-    if not (length > 0).all():
-        raise error("normals", "non-zero normal vectors", f"{int((length == 0).sum())} zero-length normals",
+    nrm, ok = unit_rows_mask(nrm)
+    if not ok.all():
+        raise error("normals", "non-zero normal vectors", f"{int((~ok).sum())} zero-length normals",
                     "Estimate them with ipfit.estimate_normals.")
-    idx = neighbours(pts, default_k(k, pts.shape[1], len(pts)), workers)
-    return orient_graph(pts, nrm / length[:, None], idx, np.ones(len(pts)))
+    k = default_k(k, pts.shape[1], len(pts))
+    workers = check_workers(workers)
+    pts = standardise(pts)
+    tree = cKDTree(pts)
+    return orient_graph(pts, nrm, neighbours(tree, k, workers), np.ones(len(pts)), tree=tree)
+
+
+def _edges(idx: NDArray[np.intp], links) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    """Each undirected edge of the k-nearest graph and of ``links`` once, as (lo, hi) with lo < hi.
+
+    Once, because COO → CSR sums the weights of duplicate entries.
+    """
+    n = len(idx)
+    lo = np.repeat(np.arange(n, dtype=np.int64), idx.shape[1])
+    hi = idx.ravel().astype(np.int64)
+    if links is not None and len(links[0]):
+        lo, hi = np.concatenate([lo, links[0]]), np.concatenate([hi, links[1]])
+    a, b = np.minimum(lo, hi), np.maximum(lo, hi)
+    key = np.unique((a * n + b)[a != b])  # one int64 key per pair: sorting them is cheap
+    return (key // n).astype(np.intp), (key % n).astype(np.intp)
 
 
 def orient_graph(points: NDArray, normals: NDArray, idx: NDArray[np.intp], flatness: NDArray,
-            links: tuple[NDArray[np.intp], NDArray[np.intp]] | None = None) -> NDArray[np.float64]:
+                 links: tuple[NDArray[np.intp], NDArray[np.intp]] | None = None, *,
+                 tree: cKDTree | None = None) -> NDArray[np.float64]:
+    """Signs of unit ``normals`` made consistent on the graph of ``idx`` (+ ``links``); see orient_normals."""
     n = len(points)
-    rows = np.repeat(np.arange(n), idx.shape[1])
-    cols = idx.ravel()
-    # Each undirected edge once (COO → CSR would sum duplicate weights): j→i is dropped when i→j
-    # is also listed, i.e. when i is among j's neighbours too.
-    mutual = (idx[cols] == rows[:, None]).any(axis=1)
-    keep = (rows != cols) & ((rows < cols) | ~mutual)
-    lo, hi = rows[keep], cols[keep]
-    if links is not None and len(links[0]):
-        # Extra links, each once and only if not already a k-nearest edge.
-        a, b = np.minimum(*links), np.maximum(*links)
-        pairs = np.unique(np.column_stack([a, b])[a != b], axis=0)
-        a, b = pairs[:, 0], pairs[:, 1]
-        known = (idx[a] == b[:, None]).any(axis=1) | (idx[b] == a[:, None]).any(axis=1)
-        lo, hi = np.concatenate([lo, a[~known]]), np.concatenate([hi, b[~known]])
-    bridge_lo, bridge_hi = _bridges(points, lo, hi, idx.shape[1])
+    lo, hi = _edges(idx, links)
+    tree = cKDTree(points) if tree is None else tree
+    bridge_lo, bridge_hi = _bridges(points, lo, hi, idx.shape[1], tree)
     lo, hi = np.concatenate([lo, bridge_lo]), np.concatenate([hi, bridge_hi])
     agree, off_plane = _consistency(points, normals, lo, hi, with_off_plane=True)
     # Links through curved or rough neighbourhoods (creases, tips, noise) are less trustworthy
@@ -154,7 +163,8 @@ def orient_graph(points: NDArray, normals: NDArray, idx: NDArray[np.intp], flatn
     return normals * sign[:, None]
 
 
-def _bridges(points: NDArray, lo: NDArray, hi: NDArray, k: int) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+def _bridges(points: NDArray, lo: NDArray, hi: NDArray, k: int,
+             tree: cKDTree | None) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
     """Edges joining the pieces of a k-nearest-neighbour graph that are close to each other.
 
     Sparse or uneven sampling splits a curve or surface into fragments whose own extreme
@@ -166,7 +176,6 @@ def _bridges(points: NDArray, lo: NDArray, hi: NDArray, k: int) -> tuple[NDArray
     graph = sparse.csr_matrix((np.ones(len(lo)), (lo, hi)), shape=(n, n))
     ncomp, labels = csgraph.connected_components(graph, directed=False)
     found_lo, found_hi = [], []
-    tree = None
     reach = 2 * k
     while ncomp > 1 and reach <= 8 * k:
         if tree is None:
@@ -174,6 +183,7 @@ def _bridges(points: NDArray, lo: NDArray, hi: NDArray, k: int) -> tuple[NDArray
         largest = np.argmax(np.bincount(labels))
         query = np.flatnonzero(labels != largest)  # links are symmetric: the largest piece is found by the others
         dist, near = tree.query(points[query], k=min(reach, n))
+        near = np.minimum(near, n - 1)  # no point found (an overflowed distance): its dist is inf
         dist = np.where(labels[near] != labels[query][:, None], dist, np.inf)
         best = np.argmin(dist, axis=1)
         rows = np.arange(len(query))
@@ -208,13 +218,16 @@ def _consistency(points: NDArray, normals: NDArray, i: NDArray, j: NDArray, *, w
     ``with_off_plane`` also returns |n_i·e| |n_j·e| (e: unit p_j − p_i), near 1 when the link
     runs along both normals.
     """
-    e = points[j] - points[i]
-    length = np.linalg.norm(e, axis=1)
-    e /= np.where(length > 0, length, 1.0)[:, None]
-    ni, nj = normals[i], normals[j]
-    ai, aj = np.einsum("ij,ij->i", ni, e), np.einsum("ij,ij->i", nj, e)
-    c = np.einsum("ij,ij->i", ni, nj) - 2.0 * ai * aj
-    return (c, np.abs(ai * aj)) if with_off_plane else c
+    c = np.empty(len(i))
+    off = np.empty(len(i)) if with_off_plane else None
+    for rows in blocks(len(i), 1):  # (E, D) temporaries for a million points' edges: blocks
+        e = unit_rows(points[j[rows]] - points[i[rows]])
+        ni, nj = normals[i[rows]], normals[j[rows]]
+        ai, aj = np.einsum("ij,ij->i", ni, e), np.einsum("ij,ij->i", nj, e)
+        c[rows] = np.einsum("ij,ij->i", ni, nj) - 2.0 * ai * aj
+        if with_off_plane:
+            off[rows] = np.abs(ai * aj)
+    return (c, off) if with_off_plane else c
 
 
 def _anchors(points: NDArray, labels: NDArray, ncomp: int) -> tuple[NDArray[np.intp], NDArray[np.float64]]:
@@ -236,17 +249,15 @@ def _anchors(points: NDArray, labels: NDArray, ncomp: int) -> tuple[NDArray[np.i
     except (QhullError, ValueError):
         pass  # flat or degenerate cloud: the seeds alone orient it
     else:
-        acc = np.zeros_like(points)
-        for j in range(dim):
-            np.add.at(acc, hull.simplices[:, j], hull.equations[:, :dim])
+        corners = hull.simplices.ravel()
+        facet = np.repeat(hull.equations[:, :dim], dim, axis=0)
+        acc = np.stack([np.bincount(corners, facet[:, j], len(points)) for j in range(dim)], axis=1)
         idx.insert(0, hull.vertices)
         dirs.insert(0, acc[hull.vertices])
     idx = np.concatenate(idx)
     dirs = np.concatenate(dirs)
-    length = np.linalg.norm(dirs, axis=1)
-    # A component whose points all coincide has no outward side: any direction will do.
-    dirs[length == 0, 0], length[length == 0] = 1.0, 1.0
-    dirs /= length[:, None]
+    dirs, ok = unit_rows_mask(dirs)
+    dirs[~ok, 0] = 1.0  # a component whose points all coincide has no outward side: any will do
     idx, first = np.unique(idx, return_index=True)
     return idx.astype(np.intp), dirs[first]
 

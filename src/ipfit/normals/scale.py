@@ -14,7 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
-from .local import _BLOCK_ELEMENTS, DEFAULT_K, argmax_per_group, neighbours, pca_normals
+from .local import DEFAULT_K, argmax_per_group, blocks, neighbours, pca_normals
 from .orient import orient_graph
 
 # Noise: the share of a neighbourhood's spread along its normal (the surface variation
@@ -51,7 +51,7 @@ class _Scaled(NamedTuple):
     radius: float  # median radius of the chosen neighbourhoods
 
 
-def noise_scale(points: NDArray, idx: NDArray[np.intp], flatness: NDArray, workers: int) -> _Scaled | None:
+def noise_scale(points: NDArray, tree: cKDTree, idx: NDArray[np.intp], flatness: NDArray, workers: int) -> _Scaled | None:
     """Normals on neighbourhoods grown to see past the noise, or None if the data are not noisy.
 
     Each point gets the scale (k doubled 1 to 5 times) at which the surface variation, averaged
@@ -72,31 +72,33 @@ def noise_scale(points: NDArray, idx: NDArray[np.intp], flatness: NDArray, worke
         kk *= 2
     if not scales:
         return None
-    dist, wide = cKDTree(points).query(points, k=scales[-1], workers=workers)
-    wide = np.asarray(wide, dtype=np.intp).reshape(n, scales[-1])
-    dist = np.asarray(dist).reshape(n, scales[-1])
-    fits = [pca_normals(points, wide[:, :kk]) for kk in scales]
-    variation = np.stack([(1.0 - fl) / dim for _, fl in fits])  # (scales, n)
+    m = len(scales)
+    normals = np.empty((m, n, dim))
+    flat = np.empty((m, n))
+    centroid = np.empty((m, n, dim))
+    reach = np.empty((m, n))  # distance to the farthest point of each neighbourhood
+    # Blocks of points, so the widest neighbourhoods (up to _MAX_WIDE_K points each) are never
+    # held for all points at once.
+    for rows in blocks(n, scales[-1]):
+        dist, wide = tree.query(points[rows], k=scales[-1], workers=workers)
+        wide = np.minimum(wide, n - 1)  # an overflowed distance finds no point: any index keeps shapes
+        for j, kk in enumerate(scales):
+            normals[j, rows], flat[j, rows] = pca_normals(points, wide[:, :kk])
+            centroid[j, rows] = points[wide[:, :kk]].mean(axis=1)
+            reach[j, rows] = dist[:, kk - 1]
+    variation = (1.0 - flat) / dim  # (scales, n)
     medians = np.median(variation, axis=1)
     if medians.min() > _GAIN * max(start, medians[0]):
         return None
     smooth = variation[:, idx].mean(axis=2)
     choice = np.argmin(smooth, axis=0)
     at = np.arange(n)
-    normals = np.stack([nrm for nrm, _ in fits])[choice, at]
-    flat = np.stack([fl for _, fl in fits])[choice, at]
-    size = np.asarray(scales)[choice]
-    centroid = np.empty_like(points)
-    block = max(1, _BLOCK_ELEMENTS // scales[-1])
-    for s in range(0, n, block):
-        rows = slice(s, s + block)
-        within = np.arange(scales[-1]) < size[rows, None]
-        centroid[rows] = (points[wide[rows]] * within[:, :, None]).sum(axis=1) / size[rows, None]
-    radius = float(np.median(dist[at, size - 1]))
+    normals, flat, centroid = normals[choice, at], flat[choice, at], centroid[choice, at]
+    radius = float(np.median(reach[choice, at]))
     return _Scaled(normals, flat, centroid, radius)
 
 
-def orient_coarse(points: NDArray, scaled: _Scaled, workers: int) -> NDArray[np.float64]:
+def orient_coarse(points: NDArray, tree: cKDTree, scaled: _Scaled, workers: int) -> NDArray[np.float64]:
     """Orient the normals of noisy points on a denoised, coarser sample of the shape.
 
     On noisy data the sign propagation between neighbouring points fails: the link between two
@@ -126,13 +128,13 @@ def orient_coarse(points: NDArray, scaled: _Scaled, workers: int) -> NDArray[np.
             rep = np.delete(rep, np.unique(close.max(axis=1)))
         fallback = len(rep) < dim + 2
     if fallback:
-        return orient_graph(points, normals, neighbours(points, DEFAULT_K[dim], workers), flatness)
+        return orient_graph(points, normals, neighbours(tree, min(DEFAULT_K[dim], n), workers), flatness, tree=tree)
     coarse = centroid[rep]
     m = len(rep)
-    oriented = orient_graph(coarse, normals[rep], neighbours(coarse, min(DEFAULT_K[dim], m), workers), flatness[rep])
-    near_k = min(_VOTERS, m)
-    _, near = cKDTree(coarse).query(points, k=near_k, workers=workers)
-    near = np.reshape(near, (n, near_k))
+    coarse_tree = cKDTree(coarse)
+    oriented = orient_graph(coarse, normals[rep], neighbours(coarse_tree, min(DEFAULT_K[dim], m), workers),
+                            flatness[rep], tree=coarse_tree)
+    near = neighbours(coarse_tree, min(_VOTERS, m), workers, points)
     step = points[:, None, :] - coarse[near]
     off = np.einsum("ikj,ikj->ik", step, oriented[near])
     cost = np.einsum("ikj,ikj->ik", step, step) + _OFF_SHEET * off ** 2
