@@ -439,3 +439,36 @@ def test_bad_arguments_get_one_message(kwargs, words):
 def test_one_thread_gives_the_same_normals(rng):
     points, _, _ = synthetic.torus(2000, rng=rng)
     np.testing.assert_array_equal(estimate_normals(points, workers=1), estimate_normals(points, workers=-1))
+
+
+# -- large clouds ---------------------------------------------------------------------------------
+
+def test_large_piece_systems_are_solved_iteratively_to_the_direct_solution(rng):
+    """Above _DIRECT_PIECES pieces conjugate gradients replace the direct solver: same solution."""
+    from scipy import sparse
+    from scipy.sparse.linalg import spsolve
+
+    from ipfit.normals.orient import _DIRECT_PIECES, _solve
+
+    side = int(np.sqrt(_DIRECT_PIECES)) + 10  # a grid of pieces, as on a surface
+    m = side * side
+    at = np.arange(m).reshape(side, side)
+    i = np.concatenate([at[:, :-1].ravel(), at[:-1, :].ravel()])
+    j = np.concatenate([at[:, 1:].ravel(), at[1:, :].ravel()])
+    v = rng.uniform(-1, 1, len(i))
+    coupling = sparse.csr_matrix((np.concatenate([v, v]), (np.concatenate([i, j]), np.concatenate([j, i]))),
+                                 shape=(m, m))
+    pull = np.where(rng.random(m) < 0.05, 1.0, 0.0)
+    diagonal = np.asarray(abs(coupling).sum(axis=1)).ravel() + pull + 1e-12
+    system = (sparse.diags(diagonal) - coupling).tocsc()
+    rhs = pull * rng.choice([-1.0, 1.0], m)
+    np.testing.assert_allclose(_solve(system, diagonal, rhs), spsolve(system, rhs), atol=1e-6)
+
+
+@pytest.mark.slow
+def test_a_large_torus_is_oriented_outward(rng):
+    """80,000 points: the convex hull of a sample anchors it, the piece system is solved iteratively."""
+    points, truth, _ = synthetic.torus(80_000, rng=rng)
+    agreement = normal_agreement(estimate_normals(points), truth)
+    assert agreement.flipped_fraction == 0
+    assert agreement.median_angle < 2
