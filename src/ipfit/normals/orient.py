@@ -47,7 +47,7 @@ def orient_normals(points: ArrayLike, normals: ArrayLike, k: int | None = None, 
     k : int, optional
         Neighbours per point for the graph (default as in :func:`estimate_normals`).
     workers : int
-        Threads for the neighbour search.
+        Threads for the neighbour search: -1 for all cores, or a positive number.
 
     Returns
     -------
