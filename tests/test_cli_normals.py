@@ -29,7 +29,8 @@ def test_estimate_and_compare_on_a_bundled_mesh(tmp_path, capsys, spelling):
     flipped, off = int((cos < 0).sum()), int((np.abs(cos) < np.cos(np.radians(30))).sum())
     assert 0 < flipped < off < 453
     source = "those from the bundled 'bunny_res4' reference"
-    assert f"\n{flipped} of 453 ({100 * flipped / 453:.2f}%) estimated normals point the opposite way to {source}\n" in text
+    share = f"{flipped} of 453 ({100 * flipped / 453:.2f}%)"
+    assert f"\n{share} estimated normals point the opposite way to {source}\n" in text
     assert f"\n{off} of 453 ({100 * off / 453:.2f}%) estimated normals differ from {source} by more than 30°" in text
 
 

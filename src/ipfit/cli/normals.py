@@ -40,8 +40,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--k", type=positive_int, metavar="K",
                         help="neighbours per point for the estimate (default 6 in 2D, 12 in 3D)")
     parser.add_argument("--outward", action="store_true",
-                        help="with --normals estimate on a mesh: also compare only where the reference normals point out "
-                             "of the solid (winding numbers: seconds per 10,000 vertices × 10,000 faces)")
+                        help="with --normals estimate on a mesh: also compare only where the reference normals "
+                             "point out of the solid (winding numbers: seconds per 10,000 vertices × 10,000 faces)")
     parser.add_argument("--ascii", action="store_true", help="write an ASCII PLY instead of a binary one")
 
 
@@ -82,7 +82,8 @@ def run(args: argparse.Namespace) -> int:
                                 "Create it first or choose another path.")
     points, reference, source, label, faces = _load(args.input)
     n, dim = points.shape
-    print(f"{label}: {n:,} points ({dim}D), " + (f"normals from {source}" if reference is not None else "without normals"))
+    has = f"normals from {source}" if reference is not None else "without normals"
+    print(f"{label}: {n:,} points ({dim}D), {has}")
 
     if args.normals == "file" and reference is None:
         raise InvalidInputError(f"--normals file: {label} has no normals. Use --normals estimate.")

@@ -51,7 +51,8 @@ class _Scaled(NamedTuple):
     radius: float  # median radius of the chosen neighbourhoods
 
 
-def noise_scale(points: NDArray, tree: cKDTree, idx: NDArray[np.intp], flatness: NDArray, workers: int) -> _Scaled | None:
+def noise_scale(points: NDArray, tree: cKDTree, idx: NDArray[np.intp], flatness: NDArray,
+                workers: int) -> _Scaled | None:
     """Normals on neighbourhoods grown to see past the noise, or None if the data are not noisy.
 
     Each point gets the scale (k doubled 1 to 5 times) at which the surface variation, averaged
