@@ -472,3 +472,10 @@ def test_a_large_torus_is_oriented_outward(rng):
     agreement = normal_agreement(estimate_normals(points), truth)
     assert agreement.flipped_fraction == 0
     assert agreement.median_angle < 2
+
+
+def test_normal_agreement_of_huge_and_tiny_vectors():
+    huge_and_tiny = [[1e200, 0.0], [0.0, 1e-200], [3e300, 3e300]]
+    a = no_warnings(normal_agreement, huge_and_tiny, [[2.0, 0.0], [0.0, -1.0], [1.0, 1.0]])
+    np.testing.assert_allclose(a.angles, 0.0, atol=1e-5)  # arccos near 1: rounding gives ~1e-6°
+    assert a.flipped.tolist() == [False, True, False]

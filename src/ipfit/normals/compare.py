@@ -7,6 +7,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .._numeric import unit_rows_mask
 from .._validation import error
 
 __all__ = ["Agreement", "normal_agreement"]
@@ -49,8 +50,8 @@ def normal_agreement(estimated: ArrayLike, reference: ArrayLike) -> Agreement:
                     "Pass one normal per row of the same points.")
     ok = np.isfinite(est).all(axis=1) & np.isfinite(ref).all(axis=1)
     e, r = est[ok], ref[ok]
-    denom = np.linalg.norm(e, axis=1) * np.linalg.norm(r, axis=1)
-    cos = np.einsum("ij,ij->i", e, r) / np.where(denom > 0, denom, 1.0)
+    # Unit rows first (overflow-safe): a product of lengths of 1e200 would overflow. A zero row: cos 0, 90°.
+    cos = np.einsum("ij,ij->i", unit_rows_mask(e)[0], unit_rows_mask(r)[0])
     angles = np.degrees(np.arccos(np.clip(np.abs(cos), 0.0, 1.0)))
     flipped = cos < 0
     m = int(ok.sum())
