@@ -2,6 +2,7 @@
 
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -9,15 +10,52 @@ import pytest
 from ipfit import io
 from ipfit.cli import main
 
+DATA = Path(__file__).parent / "data" / "normals"  # small copies of real files, see CREDITS.md there
 
-def test_estimate_and_compare_on_a_bundled_mesh(tmp_path, capsys):
+
+@pytest.mark.parametrize("spelling", [["--normals", "estimate"], ["--estimate"]], ids=["canonical", "alias"])
+def test_estimate_and_compare_on_a_bundled_mesh(tmp_path, capsys, spelling):
     out = tmp_path / "res4.ply"
-    assert main(["normals", "bunny_res4", "-o", str(out), "--estimate"]) == 0
+    assert main(["normals", "bunny_res4", "-o", str(out), *spelling]) == 0
     text = capsys.readouterr().out
-    assert "453 points (3D)" in text and "estimated normals: k = 12" in text
-    assert "disagree with" in text and "point the other way" in text and "median angle" in text
+    assert "453 points (3D)" in text and "from the 12 nearest points of each point (k = 12)" in text
     points, normals = io.read_points(out)
     assert points.shape == normals.shape == (453, 3)
+    # The printed counts are the agreement's, computed here independently.
+    from ipfit.datasets import bundled
+
+    _, reference = bundled.load_dataset("bunny_res4")
+    cos = np.einsum("ij,ij->i", normals, reference)
+    flipped, off = int((cos < 0).sum()), int((np.abs(cos) < np.cos(np.radians(30))).sum())
+    assert 0 < flipped < off < 453
+    source = "those from the bundled 'bunny_res4' reference"
+    share = f"{flipped} of 453 ({100 * flipped / 453:.2f}%)"
+    assert f"\n{share} estimated normals point the opposite way to {source}\n" in text
+    assert f"\n{off} of 453 ({100 * off / 453:.2f}%) estimated normals differ from {source} by more than 30°" in text
+
+
+def test_alias_and_canonical_spelling_give_the_same_file(tmp_path):
+    for name, spelling in (("a.npy", ["--estimate"]), ("b.npy", ["--normals", "estimate"])):
+        assert main(["normals", "airplane", "-o", str(tmp_path / name), *spelling]) == 0
+    assert (tmp_path / "a.npy").read_bytes() == (tmp_path / "b.npy").read_bytes()
+    # and both differ from the copied reference normals (default, or --normals file)
+    assert main(["normals", "airplane", "-o", str(tmp_path / "c.npy"), "--normals", "file"]) == 0
+    assert (tmp_path / "c.npy").read_bytes() != (tmp_path / "a.npy").read_bytes()
+
+
+def test_help_documents_the_alias(capsys):
+    with pytest.raises(SystemExit):
+        main(["normals", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert "--normals {file,estimate}" in text and "same as --normals estimate" in text
+
+
+def test_normals_file_without_normals_is_refused(tmp_path, capsys):
+    src = io.write_points(tmp_path / "p.xyz", np.random.default_rng(0).random((20, 3)))
+    assert main(["normals", str(src), "-o", str(tmp_path / "o.ply"), "--normals", "file"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--normals file" in err and "has no normals" in err
+    assert not (tmp_path / "o.ply").exists()
 
 
 def test_outward_check_on_a_mesh_that_passes_through_itself(tmp_path, capsys):
@@ -31,17 +69,31 @@ def test_outward_check_on_a_mesh_that_passes_through_itself(tmp_path, capsys):
     mesh.export(src)
     assert main(["normals", str(src), "-o", str(tmp_path / "out.ply"), "--estimate", "--outward"]) == 0
     text = capsys.readouterr().out
-    assert "2 of 16 normals from the faces (area-weighted) do not point out of the mesh's solid" in text
-    assert "over the other 14," in text
+    assert "2 of 16 normals from the faces (area-weighted) do not point out of the mesh's solid: " \
+           "it passes through itself or is open there" in text
+    assert "where they do point out, " in text and " of 14 (" in text
     assert main(["normals", str(src), "-o", str(tmp_path / "out.ply"), "--outward"]) == 0
-    assert "--outward only matters with --estimate" in capsys.readouterr().out
+    assert "--outward was not used: it only applies with --normals estimate" in capsys.readouterr().out
 
 
-def test_copy_the_files_normals(tmp_path, shared_data, capsys):
+def test_outward_note_on_a_closed_mesh_says_all_point_out(tmp_path, capsys):
+    import trimesh
+
+    src = tmp_path / "box.ply"
+    trimesh.creation.box().export(src)
+    assert main(["normals", str(src), "-o", str(tmp_path / "out.ply"), "--normals", "estimate", "--outward"]) == 0
+    text = capsys.readouterr().out
+    assert "all 8 normals from the faces (area-weighted) point out of the mesh's solid" in text
+    assert "passes through itself" not in text  # the explanation only where some do not
+    assert "where they do point out, 0 of 8 (0.00%) estimated normals point the opposite way" in text
+
+
+def test_copy_the_files_normals(tmp_path, capsys):
     out = tmp_path / "apple.csv"
-    assert main(["normals", str(shared_data / "3d" / "apple.ply"), "-o", str(out)]) == 0
-    assert "normals from the file" in capsys.readouterr().out
-    expected = io.read_points(shared_data / "3d" / "apple.ply")
+    assert main(["normals", str(DATA / "apple.ply"), "-o", str(out), "--k", "8"]) == 0
+    text = capsys.readouterr().out
+    assert "867 points (3D), normals from the file" in text and "--k was not used" in text
+    expected = io.read_points(DATA / "apple.ply")
     got = io.read_points(out)
     np.testing.assert_allclose(got.points, expected.points)
     np.testing.assert_allclose(got.normals, expected.normals)
@@ -55,16 +107,18 @@ def test_file_without_normals_is_estimated(tmp_path, rng, capsys):
     out = tmp_path / "s.ply"
     assert main(["normals", str(src), "-o", str(out), "--k", "10", "--ascii"]) == 0
     text = capsys.readouterr().out
-    assert "no normals" in text and "the input has none" in text and "k = 10" in text
+    assert "without normals" in text and "the input has none" in text and "k = 10" in text
+    assert "opposite way" not in text  # nothing to compare with
     assert out.read_bytes().startswith(b"ply\nformat ascii")
     assert np.all(np.einsum("ij,ij->i", io.read_points(out).normals, truth) > 0.9)
 
 
-def test_silhouette_image(tmp_path, shared_data, capsys):
+def test_silhouette_image(tmp_path, capsys):
     out = tmp_path / "boot.npz"
-    assert main(["normals", str(shared_data / "2d" / "boot.gif"), "-o", str(out), "--estimate"]) == 0
+    assert main(["normals", str(DATA / "boot.gif"), "-o", str(out), "--normals", "estimate"]) == 0
     text = capsys.readouterr().out
-    assert "traced boundary" in text and "0 of 1,354 point the other way" in text
+    assert "1,354 points (2D), normals from the traced boundary" in text
+    assert "0 of 1,354 (0.00%) estimated normals point the opposite way to those from the traced boundary" in text
 
 
 @pytest.mark.parametrize("argv, words", [

@@ -8,8 +8,9 @@ from ipfit.datasets import bundled, synthetic
 from ipfit.exceptions import InvalidInputError
 from ipfit.io import _complete, vertex_normals_from_faces
 from ipfit.solid import outward_vertices
-from ipfit.normals import (DEFAULT_K, _noise_scale, _pca_normals, contour_normals, estimate_normals,
-                           normal_agreement, orient_normals)
+from ipfit.normals import DEFAULT_K, contour_normals, estimate_normals, normal_agreement, orient_normals
+from ipfit.normals.local import pca_normals
+from ipfit.normals.scale import noise_scale
 
 
 def face_normals(name):
@@ -361,6 +362,120 @@ def test_clean_bundled_data_are_not_taken_for_noisy(name):
     """The noise handling leaves clean data to the fits above, however coarse (bunny_res4, airplane)."""
     points, _ = bundled.load_dataset(name)
     k = DEFAULT_K[points.shape[1]]
-    _, idx = cKDTree(points).query(points, k)
-    _, flatness = _pca_normals(points, idx)
-    assert _noise_scale(points, idx, flatness, 1) is None
+    tree = cKDTree(points)
+    _, idx = tree.query(points, k)
+    _, flatness = pca_normals(points, idx)
+    assert noise_scale(points, tree, idx, flatness, 1) is None
+
+
+# -- extreme but finite values, and argument checks (issue 13) -------------------------------------
+
+def no_warnings(function, *args, **kwargs):
+    """Call ``function``; any warning (a numpy RuntimeWarning above all) fails the test."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        return function(*args, **kwargs)
+
+
+@pytest.mark.parametrize("scale", [1e200, 1e155, 1e-200, 1e-160])
+@pytest.mark.parametrize("which", ["torus", "boot", "noisy sphere"])
+def test_normals_do_not_depend_on_scale_or_position(which, scale, rng):
+    """Squares of 1e155 overflow and of 1e-160 underflow: the estimate must not see them."""
+    if which == "boot":
+        points, _ = bundled.load_dataset("boot")
+    else:
+        points, _, _ = (synthetic.torus if which == "torus" else synthetic.sphere)(1500, rng=rng)
+        if which == "noisy sphere":
+            points, _ = add_noise(points, 0.01, rng)
+    expected = estimate_normals(points)
+    moved = (points + 3.0) * scale  # a far offset too: the centre is not at the origin
+    got = no_warnings(estimate_normals, moved)
+    assert np.isfinite(got).all()
+    np.testing.assert_allclose(got, expected, atol=1e-9)  # the same lines and the same orientation
+    lines = no_warnings(estimate_normals, moved, orient=False)
+    assert normal_agreement(lines, estimate_normals(points, orient=False)).angles.max() < 1e-4
+
+
+@pytest.mark.parametrize("scale", [1e200, 1e-200])
+def test_orient_and_contour_normals_at_extreme_scales(scale, rng):
+    points, truth, _ = synthetic.torus(800, rng=rng)
+    signs = np.where(rng.random(len(points)) < 0.5, -1.0, 1.0)[:, None]
+    np.testing.assert_allclose(no_warnings(orient_normals, points * scale, truth * signs * scale), truth, atol=1e-12)
+    contour, _ = bundled.load_dataset("airplane")
+    np.testing.assert_allclose(no_warnings(contour_normals, contour * scale), contour_normals(contour), atol=1e-9)
+
+
+def test_a_far_outlier_gives_finite_unit_normals(rng):
+    points, truth, _ = synthetic.sphere(500, rng=rng)
+    with_outlier = np.vstack([points, [[1e300, -1e300, 1e300]]])
+    got = no_warnings(estimate_normals, with_outlier)
+    np.testing.assert_allclose(np.linalg.norm(got, axis=1), 1.0)
+    # the sphere's own normals are not disturbed by one point 1e300 away
+    assert normal_agreement(got[:-1], truth).median_angle < 5
+
+
+@pytest.mark.parametrize("kwargs, words", [
+    ({"workers": 0}, ["workers", "-1 (all cores) or a positive number", "got 0"]),
+    ({"workers": -2}, ["workers", "got -2"]),
+    ({"workers": 1.5}, ["workers", "an integer"]),
+    ({"orient": "yes"}, ["orient", "True or False"]),
+    ({"k": 0}, ["k", ">= 3"]),
+])
+def test_bad_arguments_get_one_message(kwargs, words):
+    points = np.random.default_rng(0).random((30, 3))
+    with pytest.raises(InvalidInputError) as info:
+        estimate_normals(points, **kwargs)
+    message = str(info.value)
+    assert message.startswith(f"{words[0]}: expected ")
+    for word in words:
+        assert word in message
+    if "workers" in kwargs:
+        with pytest.raises(InvalidInputError, match="^workers: expected"):
+            orient_normals(points, points, **kwargs)
+
+
+def test_one_thread_gives_the_same_normals(rng):
+    points, _, _ = synthetic.torus(2000, rng=rng)
+    np.testing.assert_array_equal(estimate_normals(points, workers=1), estimate_normals(points, workers=-1))
+
+
+# -- large clouds ---------------------------------------------------------------------------------
+
+def test_large_piece_systems_are_solved_iteratively_to_the_direct_solution(rng):
+    """Above _DIRECT_PIECES pieces conjugate gradients replace the direct solver: same solution."""
+    from scipy import sparse
+    from scipy.sparse.linalg import spsolve
+
+    from ipfit.normals.orient import _DIRECT_PIECES, _solve
+
+    side = int(np.sqrt(_DIRECT_PIECES)) + 10  # a grid of pieces, as on a surface
+    m = side * side
+    at = np.arange(m).reshape(side, side)
+    i = np.concatenate([at[:, :-1].ravel(), at[:-1, :].ravel()])
+    j = np.concatenate([at[:, 1:].ravel(), at[1:, :].ravel()])
+    v = rng.uniform(-1, 1, len(i))
+    coupling = sparse.csr_matrix((np.concatenate([v, v]), (np.concatenate([i, j]), np.concatenate([j, i]))),
+                                 shape=(m, m))
+    pull = np.where(rng.random(m) < 0.05, 1.0, 0.0)
+    diagonal = np.asarray(abs(coupling).sum(axis=1)).ravel() + pull + 1e-12
+    system = (sparse.diags(diagonal) - coupling).tocsc()
+    rhs = pull * rng.choice([-1.0, 1.0], m)
+    np.testing.assert_allclose(_solve(system, diagonal, rhs), spsolve(system, rhs), atol=1e-6)
+
+
+@pytest.mark.slow
+def test_a_large_torus_is_oriented_outward(rng):
+    """80,000 points: the convex hull of a sample anchors it, the piece system is solved iteratively."""
+    points, truth, _ = synthetic.torus(80_000, rng=rng)
+    agreement = normal_agreement(estimate_normals(points), truth)
+    assert agreement.flipped_fraction == 0
+    assert agreement.median_angle < 2
+
+
+def test_normal_agreement_of_huge_and_tiny_vectors():
+    huge_and_tiny = [[1e200, 0.0], [0.0, 1e-200], [3e300, 3e300]]
+    a = no_warnings(normal_agreement, huge_and_tiny, [[2.0, 0.0], [0.0, -1.0], [1.0, 1.0]])
+    np.testing.assert_allclose(a.angles, 0.0, atol=1e-5)  # arccos near 1: rounding gives ~1e-6°
+    assert a.flipped.tolist() == [False, True, False]

@@ -16,12 +16,13 @@ name of a bundled dataset, see `ipfit datasets`) and write its points with norma
 by extension: .ply, .obj, .off, .csv, .xyz, .txt, .npy, .npz), e.g. to look at them in MeshLab or CloudCompare.
 
 The normals are the file's own (for meshes without vertex normals: area-weighted from the faces;
-for images: outward normals of the traced boundary). With --estimate, or when the file has none,
-they are estimated by k-nearest-neighbour PCA with consistent outward orientation; where the file
-has normals too, the command reports how many estimated normals point the other way. For meshes,
---outward first checks which of those reference normals point out of the mesh's solid (generalized
-winding numbers; a mesh that passes through itself, or has holes, has some that do not) and
-reports the disagreement over the others too.
+for images: outward normals of the traced boundary). With --normals estimate (as in `ipfit fit`;
+--estimate is the older spelling), or when the file has none, they are estimated by
+k-nearest-neighbour PCA with consistent outward orientation; where the file has normals too, the
+command reports how many estimated normals point the opposite way to the file's and how many differ
+from them by more than 30°. For meshes, --outward first checks which of those reference normals
+point out of the mesh's solid (generalized winding numbers; a mesh that passes through itself, or
+has holes, has some that do not) and reports the disagreement over the others too.
 """
 
 _OFF_LINE = 30.0  # degrees: report estimated normals whose line differs more than this
@@ -31,13 +32,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("input", metavar="INPUT", help="point file or bundled dataset name")
     parser.add_argument("-o", "--output", metavar="OUT", required=True,
                         help="output file: .ply (default binary), .obj, .off, .csv, .xyz, .txt, .npy or .npz")
-    parser.add_argument("--estimate", action="store_true",
-                        help="estimate the normals (and compare them with the file's) instead of copying them")
+    parser.add_argument("--normals", choices=("file", "estimate"), default=None,
+                        help="copy the file's normals or estimate them and compare them with the file's "
+                             "(default: the file's when present), as in `ipfit fit`")
+    parser.add_argument("--estimate", dest="normals", action="store_const", const="estimate",
+                        help="same as --normals estimate (older spelling, kept as an alias)")
     parser.add_argument("--k", type=positive_int, metavar="K",
                         help="neighbours per point for the estimate (default 6 in 2D, 12 in 3D)")
     parser.add_argument("--outward", action="store_true",
-                        help="with --estimate on a mesh: also compare only where the reference normals point out "
-                             "of the solid (winding numbers: seconds per 10,000 vertices × 10,000 faces)")
+                        help="with --normals estimate on a mesh: also compare only where the reference normals "
+                             "point out of the solid (winding numbers: seconds per 10,000 vertices × 10,000 faces)")
     parser.add_argument("--ascii", action="store_true", help="write an ASCII PLY instead of a binary one")
 
 
@@ -73,34 +77,48 @@ def run(args: argparse.Namespace) -> int:
     outputs = Outputs([out], inputs=[args.input], suffixes=tuple(io.WRITE_FORMATS))
     points, reference, source, label, faces = _load(args.input)
     n, dim = points.shape
-    print(f"{label}: {n:,} points ({dim}D), " + (f"normals from {source}" if reference is not None else "no normals"))
+    has = f"normals from {source}" if reference is not None else "without normals"
+    print(f"{label}: {n:,} points ({dim}D), {has}")
 
+    if args.normals == "file" and reference is None:
+        raise InvalidInputError(f"--normals file: {label} has no normals. Use --normals estimate.")
+    estimate = args.normals == "estimate"
     normals = reference
-    if args.estimate or reference is None:
+    if estimate or reference is None:
         k = args.k if args.k is not None else DEFAULT_K[dim]
         start = time.perf_counter()
         normals = estimate_normals(points, k=k)
         seconds = time.perf_counter() - start
-        why = "" if args.estimate else " (the input has none)"
-        print(f"estimated normals{why}: k = {k}, {seconds:.2f} s")
+        why = "" if estimate else " (the input has none)"
+        print(f"estimated normals{why} from the {k} nearest points of each point (k = {k}) in {seconds:.2f} s")
         if reference is not None:
-            agreement = normal_agreement(normals, reference)
-            flipped = int(agreement.flipped.sum())
-            off = int((agreement.angles > _OFF_LINE).sum())
-            print(f"disagree with {source}: {flipped:,} of {agreement.compared:,} point the other way "
-                  f"({100 * flipped / max(agreement.compared, 1):.2f}%); {off:,} lines off by more than "
-                  f"{_OFF_LINE:.0f}°; median angle {agreement.median_angle:.2f}°")
+            _report_agreement(normal_agreement(normals, reference), source)
     elif args.k is not None:
-        print("note: --k only matters with --estimate")
+        print("note: --k was not used: it sets the estimate's neighbourhood, and the file's normals were copied "
+              "(add --normals estimate to estimate them)")
     if args.outward:
-        if args.estimate and reference is not None and faces is not None and dim == 3:
+        if estimate and reference is not None and faces is not None and dim == 3:
             _report_outward(points, faces, reference, normals, source)
         else:
-            print("note: --outward only matters with --estimate on a 3D mesh (faces) that has reference normals")
+            print("note: --outward was not used: it only applies with --normals estimate on a 3D mesh (with faces) "
+                  "that has reference normals")
     with outputs.writing() as stage:
         io.write_points(stage(out), points, normals, binary=not args.ascii)
     print(f"wrote {out} ({n:,} points with normals)")
     return 0
+
+
+def _share(count: int, total: int) -> str:
+    return f"{count:,} of {total:,} ({100 * count / max(total, 1):.2f}%)"
+
+
+def _report_agreement(agreement, source: str) -> None:
+    n = agreement.compared
+    flipped = int(agreement.flipped.sum())
+    off = int((agreement.angles > _OFF_LINE).sum())
+    print(f"{_share(flipped, n)} estimated normals point the opposite way to those from {source}")
+    print(f"{_share(off, n)} estimated normals differ from those from {source} by more than {_OFF_LINE:.0f}° "
+          f"(as lines, whichever way they point); median difference {agreement.median_angle:.2f}°")
 
 
 def _report_outward(points, faces, reference, estimated, source) -> None:
@@ -111,8 +129,11 @@ def _report_outward(points, faces, reference, estimated, source) -> None:
     start = time.perf_counter()
     outward = outward_vertices(points, faces, reference)  # False where the reference is NaN
     seconds = time.perf_counter() - start
-    kept = int(outward.sum())
+    n, kept = len(points), int(outward.sum())
     flipped = int((outward & (np.einsum("ij,ij->i", estimated, reference) < 0)).sum())
-    print(f"{len(points) - kept:,} of {len(points):,} normals from {source} do not point out of the mesh's solid "
-          f"(it passes through itself or is open there; {seconds:.1f} s); over the other {kept:,}, "
-          f"{flipped:,} estimated normals point the other way ({100 * flipped / max(kept, 1):.2f}%)")
+    if kept == n:
+        print(f"all {n:,} normals from {source} point out of the mesh's solid (winding numbers, {seconds:.1f} s)")
+    else:
+        print(f"{n - kept:,} of {n:,} normals from {source} do not point out of the mesh's solid: it passes through "
+              f"itself or is open there (winding numbers, {seconds:.1f} s)")
+    print(f"where they do point out, {_share(flipped, kept)} estimated normals point the opposite way")

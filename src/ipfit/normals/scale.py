@@ -1,0 +1,145 @@
+"""Noisy data: each point's neighbourhood grown to see past the noise, and their orientation.
+
+On data whose noise is wider than the k nearest neighbours, the plain fit sees the noise, not the
+shape, and sign propagation between close points runs across the noise band. :func:`noise_scale`
+detects that case and picks, per point, the neighbourhood size at which it looks flattest;
+:func:`orient_coarse` orients those normals on a denoised, coarser sample of the shape.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial import cKDTree
+
+from .local import DEFAULT_K, argmax_per_group, blocks, neighbours, pca_normals
+from .orient import orient_graph
+
+# Noise: the share of a neighbourhood's spread along its normal (the surface variation
+# λ_min / Σλ of Pauly et al. 2002) is near 0 on a clean curve or surface sampled finely enough,
+# and tends to 1/D where the noise is wider than the neighbourhood. Above these medians at the
+# given k, the data may be noisy (clean bundled data: at most 0.025 in 2D except the coarse
+# 200-point airplane's 0.12, 0.005 in 3D; boot and butterfly with noise of 0.5 % of their size:
+# 0.24; bunny_res2: 0.08; a sphere of 3,000 points with noise 0.5 %: 0.03) ...
+_NOISY = {2: 0.1, 3: 0.025}
+# ... and the neighbourhoods are grown, doubling k up to this factor (Mitra & Nguyen 2003: a
+# neighbourhood must be several times wider than the noise for its PCA to see the shape; much
+# wider and curvature takes over). Noise it is if growing lowers the median surface variation
+# below _GAIN of its value at k or 2k, whichever is larger (a few points of pure noise look
+# flatter than they are: 0.24 at k = 6 in 2D, 0.33 at 12): on coarse but clean shapes (the
+# airplane, bunny_res4, a torus of 300 points) wider neighbourhoods are only rounder.
+_MAX_GROWTH = 32
+_MAX_WIDE_K = 400
+_GAIN = 0.75
+
+
+# Each noisy point takes its sign from the _VOTERS representatives nearest to it, weighted by
+# the inverse square of a distance that counts the offset along their normals _OFF_SHEET + 1
+# times: across a thin part (a bunny's ear, a few times the noise thick) the other side's
+# representatives are near but off their sheet, and must not vote.
+_VOTERS = 8
+_OFF_SHEET = 8.0
+_CELL = 3.0  # the representatives' grid: the neighbourhoods' median radius over this
+
+
+class _Scaled(NamedTuple):
+    normals: NDArray[np.float64]
+    flatness: NDArray[np.float64]
+    centroid: NDArray[np.float64]  # of each point's chosen neighbourhood
+    radius: float  # median radius of the chosen neighbourhoods
+
+
+def noise_scale(points: NDArray, tree: cKDTree, idx: NDArray[np.intp], flatness: NDArray,
+                workers: int) -> _Scaled | None:
+    """Normals on neighbourhoods grown to see past the noise, or None if the data are not noisy.
+
+    Each point gets the scale (k doubled 1 to 5 times) at which the surface variation, averaged
+    over its k nearest neighbours to steady it, is least: where the shape is smooth that is a
+    wide neighbourhood that averages the noise; near thin parts and tight bends, where wide
+    neighbourhoods take in the other side or the bend, a narrower one.
+    """
+    n, k = idx.shape
+    dim = points.shape[1]
+    start = float(np.median((1.0 - flatness) / dim))
+    if start <= _NOISY[dim]:
+        return None
+    k_max = min(_MAX_GROWTH * k, _MAX_WIDE_K, n // 4)
+    scales = []
+    kk = 2 * k
+    while kk <= k_max:
+        scales.append(kk)
+        kk *= 2
+    if not scales:
+        return None
+    m = len(scales)
+    normals = np.empty((m, n, dim))
+    flat = np.empty((m, n))
+    centroid = np.empty((m, n, dim))
+    reach = np.empty((m, n))  # distance to the farthest point of each neighbourhood
+    # Blocks of points, so the widest neighbourhoods (up to _MAX_WIDE_K points each) are never
+    # held for all points at once.
+    for rows in blocks(n, scales[-1]):
+        dist, wide = tree.query(points[rows], k=scales[-1], workers=workers)
+        wide = np.minimum(wide, n - 1)  # an overflowed distance finds no point: any index keeps shapes
+        for j, kk in enumerate(scales):
+            normals[j, rows], flat[j, rows] = pca_normals(points, wide[:, :kk])
+            centroid[j, rows] = points[wide[:, :kk]].mean(axis=1)
+            reach[j, rows] = dist[:, kk - 1]
+    variation = (1.0 - flat) / dim  # (scales, n)
+    medians = np.median(variation, axis=1)
+    if medians.min() > _GAIN * max(start, medians[0]):
+        return None
+    smooth = variation[:, idx].mean(axis=2)
+    choice = np.argmin(smooth, axis=0)
+    at = np.arange(n)
+    normals, flat, centroid = normals[choice, at], flat[choice, at], centroid[choice, at]
+    radius = float(np.median(reach[choice, at]))
+    return _Scaled(normals, flat, centroid, radius)
+
+
+def orient_coarse(points: NDArray, tree: cKDTree, scaled: _Scaled, workers: int) -> NDArray[np.float64]:
+    """Orient the normals of noisy points on a denoised, coarser sample of the shape.
+
+    On noisy data the sign propagation between neighbouring points fails: the link between two
+    close points runs across the noise band as often as along the shape. The centroids of the
+    wide neighbourhoods lie on a smoothed copy of the shape (their noise is the points' divided
+    by √k); one centroid per cell of a grid a third of the neighbourhoods' median radius wide
+    (and no two closer than half that) is a clean, evenly spaced sample of it, oriented by
+    :func:`orient_graph` like clean data. Each point then takes the sign that agrees best with the
+    oriented representatives nearest to it on its own side (see _OFF_SHEET).
+    """
+    normals, flatness, centroid, radius = scaled
+    n, dim = points.shape
+    size = radius / _CELL
+    fallback = not size > 0
+    if not fallback:
+        keys = np.floor((centroid - centroid.min(axis=0)) / size).astype(np.int64)
+        _, cell = np.unique(keys, axis=0, return_inverse=True)
+        cell = cell.ravel()
+        ncell = int(cell.max()) + 1
+        counts = np.bincount(cell, minlength=ncell).astype(float)
+        mean = np.stack([np.bincount(cell, centroid[:, j], ncell) for j in range(dim)], axis=1) / counts[:, None]
+        gap = centroid - mean[cell]
+        # in the cells' order, not the points': the result does not depend on the input order
+        rep = argmax_per_group(-np.einsum("ij,ij->i", gap, gap), cell, ncell)
+        close = cKDTree(centroid[rep]).query_pairs(size / 2.0, output_type="ndarray")
+        if len(close):
+            rep = np.delete(rep, np.unique(close.max(axis=1)))
+        fallback = len(rep) < dim + 2
+    if fallback:
+        return orient_graph(points, normals, neighbours(tree, min(DEFAULT_K[dim], n), workers), flatness, tree=tree)
+    coarse = centroid[rep]
+    m = len(rep)
+    coarse_tree = cKDTree(coarse)
+    oriented = orient_graph(coarse, normals[rep], neighbours(coarse_tree, min(DEFAULT_K[dim], m), workers),
+                            flatness[rep], tree=coarse_tree)
+    near = neighbours(coarse_tree, min(_VOTERS, m), workers, points)
+    step = points[:, None, :] - coarse[near]
+    off = np.einsum("ikj,ikj->ik", step, oriented[near])
+    cost = np.einsum("ikj,ikj->ik", step, step) + _OFF_SHEET * off ** 2
+    weight = 1.0 / (cost + (1e-9 * radius) ** 2) ** 2
+    vote = (weight * np.einsum("ij,ikj->ik", normals, oriented[near])).sum(axis=1)
+    return normals * np.where(vote < 0, -1.0, 1.0)[:, None]
+
