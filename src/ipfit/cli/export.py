@@ -30,14 +30,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from .._atomic import write_text_atomic
     from ..codegen import to_source
-    from ..plotting import load_result, result_view
-    from .mesh import pick_polynomial
+    from ..results import result_view
+    from ._common import Outputs, recorded_sources
 
-    view = result_view(load_result(args.result), source=args.result)
-    poly = pick_polynomial(view, args.degree, args.result)
+    view = result_view(args.result)
+    outputs = Outputs([args.output], inputs=[args.result, *recorded_sources(view.data)]) if args.output else None
+    poly = view.fit(args.degree, name="--degree")
     source = to_source(poly, args.to)
     if args.output:
-        write_text_atomic(args.output, source)
+        with outputs.writing() as stage:
+            write_text_atomic(stage(args.output), source)
         print(f"{args.output}: {args.to} source of a degree-{poly.degree} {poly.dim}D polynomial")
     else:
         print(source, end="")

@@ -111,23 +111,30 @@ def load_points(spec: str | None, view, command: str, *, required: bool = False,
     return data.points, faces
 
 
+def result_box(view, spec: str | None, margin: float, command: str):
+    """The box to extract or draw a result's zero set in: that of --points DATA when given, else
+    the result's "bounds", else that of the data it records, else one around its normalisation."""
+    from ..zeroset import data_bounds, default_bounds
+
+    points = None
+    if spec is not None or view.bounds is None:
+        points, _ = load_points(spec, view, command, missing="framing the box by the result's normalisation")
+    if points is not None:
+        return data_bounds(points, margin)
+    if view.bounds is not None:
+        return data_bounds(view.bounds.T, margin)
+    return default_bounds(view.polynomial, margin)
+
+
 def run(args: argparse.Namespace) -> int:
     from ..results import result_view
-    from ..zeroset import data_bounds, default_bounds, extract_zero_set
+    from ..zeroset import extract_zero_set
 
     view = result_view(args.result)
     check_output_suffix(args.output, view.dim)
     outputs = Outputs([args.output], inputs=[args.result, args.points, *recorded_sources(view.data)])
     poly = view.fit(args.degree, name="--degree")
-    points = None
-    if args.points is not None or view.bounds is None:
-        points, _ = load_points(args.points, view, NAME, missing="framing the box by the result's normalisation")
-    if points is not None:
-        box = data_bounds(points, args.margin)
-    elif view.bounds is not None:
-        box = data_bounds(view.bounds.T, args.margin)
-    else:
-        box = default_bounds(poly, args.margin)
+    box = result_box(view, args.points, args.margin, NAME)
     zero_set = extract_zero_set(poly, bounds=box, resolution=args.resolution)
     with outputs.writing() as stage:
         zero_set.save(stage(args.output))

@@ -35,21 +35,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..exceptions import InvalidInputError
-    from ..plotting import load_result, result_view
     from ..rays import render
-    from .mesh import box_for, load_points, pick_polynomial
+    from ..results import result_view
+    from ._common import Outputs, recorded_sources
+    from .mesh import result_box
 
     if not args.output.lower().endswith(".png"):
         raise InvalidInputError(f"--output: expected a file ending in .png, got {args.output!r}. Use e.g. out.png.")
-    data = load_result(args.result)
-    view = result_view(data, source=args.result)
-    poly = pick_polynomial(view, args.degree, args.result)
+    view = result_view(args.result)
+    outputs = Outputs([args.output], inputs=[args.result, args.points, *recorded_sources(view.data)])
+    poly = view.fit(args.degree, name="--degree")
     if poly.dim != 3:
         raise InvalidInputError(f"{args.result}: expected a 3D surface to ray-cast, got a 2D curve. "
                                 "Draw curves with ipfit plot.")
-    points = load_points(args.points, 3)[0] if args.points else None
-    box = box_for(view, points, args.margin)
-    image = render(poly, box, args.output, size=tuple(args.size), view=tuple(args.view), up=args.up)
+    box = result_box(view, args.points, args.margin, NAME)
+    with outputs.writing() as stage:
+        image = render(poly, box, stage(args.output), size=tuple(args.size), view=tuple(args.view), up=args.up)
     covered = float((image < 255).any(axis=2).mean())
     print(f"{args.output}: {image.shape[1]}x{image.shape[0]} ray-cast image, surface on {covered:.0%} of the pixels")
     return 0

@@ -41,12 +41,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..exceptions import InvalidInputError
-    from ..plotting import load_result
+    from ..results import load_result
     from ..viewer import MAX_FACES, write_html
-    from ._common import load_input
+    from ._common import Outputs, load_input, recorded_sources
 
     data = load_result(args.result)
     output = Path(args.output) if args.output else Path(args.result).with_suffix(".html")
+    outputs = Outputs([output], inputs=[args.result, args.points, *recorded_sources(data)])
     dim = int(data.get("dim") or len(data.get("normalization", {}).get("center", [])) or 0)
     points = faces = normals = None
     recorded = (data.get("input") or {}).get("source") if isinstance(data.get("input"), dict) else None
@@ -66,8 +67,9 @@ def run(args: argparse.Namespace) -> int:
         if found is not None:
             points, faces = found.points, found.faces
             normals = None if args.no_normals else found.normals
-    write_html(data, points, output, faces=faces, normals=normals, title=args.title, up=args.up,
-               margin=args.margin, max_faces=args.max_faces or MAX_FACES)
+    with outputs.writing() as stage:
+        write_html(data, points, stage(output), faces=faces, normals=normals, title=args.title, up=args.up,
+                   margin=args.margin, max_faces=args.max_faces or MAX_FACES)
     size = output.stat().st_size / 1e6
     print(f"{output}: {size:.1f} MB" + ("" if points is not None else " (without the data points)"))
     if args.open:

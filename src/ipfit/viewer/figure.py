@@ -12,7 +12,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .._validation import as_normals, as_points, check_choice, check_int
 from ..exceptions import IpfitError
-from ..plotting import load_result, result_view
+from ..results import load_result, result_view
 from ..polynomial import ImplicitPolynomial
 from ..zeroset import ZeroSet, data_bounds, default_bounds, extract_zero_set
 from .geometry import decimate, spurious_flags
@@ -69,7 +69,7 @@ def _fits(data: dict) -> tuple[list[_Fit], int | None]:
         if "quality" in data:
             entry["quality"] = data["quality"]
         fits = [_Fit(view.polynomial.degree, view.polynomial, entry)]
-    return fits, view.selected
+    return fits, view.selected_degree
 
 
 def _fmt(value, digits: int = 4) -> str:
