@@ -74,8 +74,10 @@ def main() -> None:
     from ipfit import RECOMMENDED
     from ipfit.refine import refine
 
-    # The paper's objective (no far-field term) with the paper's DE/PSO parameters.
-    opts = RECOMMENDED.replace(far_term_weight=0.0, iterations=args.iterations)
+    # The paper's objective (no far-field term) with the paper's DE/PSO parameters: every point,
+    # every iteration (no subsampled search, no stall stop), started from every linear fit.
+    opts = RECOMMENDED.replace(far_term_weight=0.0, iterations=args.iterations, search_points=None,
+                               stall_generations=None)
 
     rows, notes = [], []
     columns = (["DE, raw coefficients"] if args.raw else []) + ["DE", "DE + polish"] + (["PSO + polish"] if args.pso else [])

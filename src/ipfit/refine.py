@@ -42,10 +42,12 @@ from .options import (DEFAULT_DELTA, DEFAULT_METHOD, RECOMMENDED, REFINE_METHODS
                       into_options, renamed_keywords)
 from .polynomial import ImplicitPolynomial, Normalization
 from .sampling import spread_subsample
-from .starts import StartFits, initial_population, start_fits
+from .starts import START_POINTS, StartFits, initial_population, start_fits
 
 __all__ = ["refine", "RefineResult", "REFINE_METHODS"]
 
+# Full-cloud L-BFGS iterations after a subsampled polish (see _polish).
+FULL_POLISH_ITERATIONS = 100
 # Two unit coefficient vectors closer than this count as the same solution.
 _DISTINCT = 1e-3
 # Whitening diagonal entries below this share of the largest belong to directions that do not
@@ -201,8 +203,9 @@ def refine(points: ArrayLike, normals: ArrayLike, degree: int, method: str = DEF
 
 
 def _objectives(pts, unit_normals, degree, delta, settings):
-    """The float64 objective on all points (start fits, polish, measures) and the search's: on a
-    well-spread subsample of ``search_points`` points, maybe in float32."""
+    """The float64 objective on all points (start fits' ranking, final polish, measures), the
+    search's (on a well-spread subsample of ``search_points`` points, maybe in float32) and, when
+    subsampled, the float64 objective on that subsample (the first polish stage)."""
     norm = Normalization.from_points(pts)
     u = norm.apply(pts)
     weight = settings["far_term_weight"]
@@ -216,8 +219,10 @@ def _objectives(pts, unit_normals, degree, delta, settings):
     n_search = settings["search_points"]
     if n_search is not None and len(u) > n_search:
         keep = spread_subsample(u, n_search, rng=0)
-        return norm, obj64, build(u[keep], unit_normals[keep], dtype), len(keep)
-    return norm, obj64, (obj64 if dtype == np.float64 else build(u, unit_normals, dtype)), len(u)
+        sub64 = build(u[keep], unit_normals[keep])
+        obj_pop = sub64 if dtype == np.float64 else build(u[keep], unit_normals[keep], dtype)
+        return norm, obj64, obj_pop, sub64
+    return norm, obj64, (obj64 if dtype == np.float64 else build(u, unit_normals, dtype)), None
 
 
 def _whitening(obj64: Objective) -> tuple[NDArray, NDArray]:
@@ -267,15 +272,28 @@ def _search(method, settings, obj_pop, starts: StartFits, r, r_inv, size, gen, c
     return unit_rows(to_a(result.population)), result
 
 
-def _polish(obj64, pool, pool_fun, has_starts: bool, r, settings, callback):
+def _polish(obj64, sub64, pool, pool_fun, has_starts: bool, r, settings, callback):
     """L-BFGS from the best candidate and, when it is another one, from the best start fit (index
-    0 of the pool): the local optimum near it is sometimes the better one, and a polish is cheap."""
+    0 of the pool): the local optimum near it is sometimes the better one, and a polish is cheap.
+
+    On a subsampled search the polish runs on the subsample first, then at most
+    ``FULL_POLISH_ITERATIONS`` more iterations on all points from the better result: the
+    subsample's optimum is close to the full one, and full-cloud iterations cost N/n times more.
+    Returns (coefficient vectors, their float64 objective on all points, polish results)."""
     starts = [int(np.argmin(pool_fun))]
     if has_starts and starts[0] != 0:
         starts.append(0)
-    polished = [lbfgs(obj64.value_and_grad, pool[i], maxiter=settings["polish_iterations"], precondition=r,
-                      callback=_staged(callback, "polish", lambda x: x)) for i in starts]
-    return polished, min(polished, key=lambda res: res.fun)
+    first = obj64 if sub64 is None else sub64
+    staged = _staged(callback, "polish", lambda x: x)
+    polished = [lbfgs(first.value_and_grad, pool[i], maxiter=settings["polish_iterations"], precondition=r,
+                      callback=staged) for i in starts]
+    xs = np.array([res.x for res in polished])
+    if sub64 is None:
+        return xs, np.array([res.fun for res in polished]), polished
+    funs = obj64(xs)
+    final = lbfgs(obj64.value_and_grad, xs[int(np.argmin(funs))],
+                  maxiter=min(settings["polish_iterations"], FULL_POLISH_ITERATIONS), precondition=r, callback=staged)
+    return np.vstack([xs, final.x]), np.append(funs, final.fun), [*polished, final]
 
 
 def _best_distinct(pool, pool_fun, n_solutions: int) -> list[int]:
@@ -316,13 +334,16 @@ def _refine(pts, unit_normals, degree, method, settings, delta, given_starts, ge
     size = settings["population_size"] or 4 * d
     if method.startswith("de") and size < 4:
         raise error("population_size", "at least 4 members for DE/rand/1", str(size))
-    norm, obj64, obj_pop, n_search = _objectives(pts, unit_normals, degree, delta, settings)
+    norm, obj64, obj_pop, sub64 = _objectives(pts, unit_normals, degree, delta, settings)
+    n_search = len(pts) if sub64 is None else sub64.n_points
+    # The linear start fits see what the search sees: a QR of the full cloud's 3N rows per start
+    # fit would cost more than the whole search on big clouds (the bunny: 80 s of 12 QRs at degree 8).
     starts = start_fits(pts, unit_normals, degree, norm, settings["start_fits"], given_starts,
-                        far_term=settings["far_term_weight"] > 0)
+                        far_term=settings["far_term_weight"] > 0, max_points=min(n_search, START_POINTS))
     if method == "polish" and not len(starts):
         raise error("starts", "at least one start fit for method='polish'", "none")
     nfev = starts.rank(obj64)
-    r, r_inv = _whitening(obj_pop if n_search < len(pts) else obj64)
+    r, r_inv = _whitening(obj64 if sub64 is None else sub64)
 
     history = starts.distances[:1].copy()
     nit, messages, success = 0, [], True
@@ -338,13 +359,14 @@ def _refine(pts, unit_normals, degree, method, settings, delta, given_starts, ge
         nfev += meta.nfev + len(final)
     polish_history = np.empty(0)
     if method.endswith("polish") and settings["polish_iterations"] > 0:
-        polished, best = _polish(obj64, pool, pool_fun, bool(len(starts)), r, settings, callback)
+        xs, funs, polished = _polish(obj64, sub64, pool, pool_fun, bool(len(starts)), r, settings, callback)
         nfev += sum(res.nfev for res in polished)
+        best = polished[int(np.argmin(funs))]
         polish_history = best.history
         messages.append(f"polish: {best.message}")
         success = success and all(res.success for res in polished)
-        pool = np.concatenate([np.array([res.x for res in polished]), pool])
-        pool_fun = np.concatenate([[res.fun for res in polished], pool_fun])
+        pool = np.concatenate([xs, pool])
+        pool_fun = np.concatenate([funs, pool_fun])
 
     kept = _best_distinct(pool, pool_fun, settings["n_solutions"])
     template = ImplicitPolynomial(basis.exponents(dim, degree), pool[kept[0]], norm, method=method)
