@@ -157,3 +157,30 @@ def test_every_result_type_speaks_scipys_vocabulary(rng):
     assert adaptive.fun == pytest.approx(adaptive.at_degree(adaptive.selected_degree).distance)
     assert adaptive.nit == len(adaptive.degrees)
     assert adaptive.nfev == sum(d.nfev for d in adaptive.degrees)
+
+
+def test_a_spurious_component_is_polished_away_before_the_degree_is_rejected():
+    # f = (x² + y² − 1)((x − 0.5)² + y² − 0.04): the unit circle (the data) and a small spurious
+    # circle inside it. The clean-up polish, with samples of the small circle kept clear, removes it.
+    from ipfit.adaptive import _spurious_places
+
+    t = np.linspace(0, 2 * np.pi, 400, endpoint=False)
+    pts = np.column_stack([np.cos(t), np.sin(t)]) * (1 + 0.01 * np.random.default_rng(1).normal(size=400))[:, None]
+    norm = ipfit.Normalization.from_points(pts)
+    probe = np.random.default_rng(0).uniform(-2, 2, (200, 2))
+    x, y = probe.T
+    exps = ipfit.basis.exponents(2, 4)
+    a = np.linalg.lstsq(ipfit.basis.monomials(norm.apply(probe), exps),
+                        (x**2 + y**2 - 1) * ((x - 0.5) ** 2 + y**2 - 0.04), rcond=None)[0]
+    spurious = ipfit.ImplicitPolynomial(exps, a, norm)
+    places = _spurious_places(spurious, pts, None, True)
+    assert places is not None
+    np.testing.assert_allclose(np.hypot(places[:, 0] - 0.5, places[:, 1]), 0.2, atol=0.02)  # the small circle only
+    cleaned = ipfit.refine(pts, pts, 4, "polish", starts=[spurious.coefficients],
+                           options=ipfit.RECOMMENDED.replace(far_term_weight=10.0, start_fits=()),
+                           keep_clear=places, rng=0)
+    q = ipfit.quality(cleaned.polynomial, pts, ordered_contour=True)
+    assert q.n_spurious == 0 and q.closed and q.f_score > 0.95
+    assert np.all(cleaned.polynomial(places) < 0)  # the kept-clear places are inside, on the data's inner side
+    with pytest.raises(ipfit.InvalidInputError, match="keep_clear"):
+        ipfit.refine(pts, pts, 4, options=ipfit.RECOMMENDED.replace(far_term_weight=0.0), keep_clear=places)

@@ -159,7 +159,7 @@ def test_starts_and_start_fits(rng):
         refine(pts, nrm, 4, options=no_fits, starts=[other])
     with pytest.raises(InvalidInputError, match=r"starts\[0\]"):
         refine(pts, nrm, 4, options=no_fits, starts=[np.ones(3)])
-    with pytest.raises(InvalidInputError, match="start_fits"):
+    with pytest.raises(InvalidInputError, match="at least one start fit or start polynomial"):
         refine(pts, nrm, 4, "polish", options=no_fits)
 
 

@@ -25,7 +25,8 @@ from .objective import Measures, measures as compute_measures
 from .options import (DEFAULT_DELTA, DEFAULT_EPSILON, DEFAULT_METHOD, DEFAULT_RULE, RECOMMENDED, REFINE_METHODS,
                       SearchOptions, renamed_keywords)
 from .polynomial import ImplicitPolynomial
-from .quality import Quality, looks_like_contour, quality
+from .quality import Quality, looks_like_contour, quality, spurious_components
+from .zeroset import extract_zero_set
 from .refine import _RENAMED as _RENAMED_SEARCH, refine
 from .rules import RULES, explain, select, select_degree, select_degree_geometric, verdict
 
@@ -195,7 +196,8 @@ class _Fitter:
         self.options = options
         self.previous: ImplicitPolynomial | None = None
 
-    def __call__(self, points, normals, degree, options: SearchOptions | None = None, extra_starts=()):
+    def __call__(self, points, normals, degree, options: SearchOptions | None = None, extra_starts=(),
+                 method: str | None = None, keep_clear=None):
         if callable(self.method):
             poly = self.method(points, normals, degree)
             if not isinstance(poly, ImplicitPolynomial):
@@ -212,8 +214,9 @@ class _Fitter:
         starts = list(extra_starts)
         if options.warm_start and self.previous is not None and self.previous.degree < degree:
             starts.append(_embed(self.previous, degree))
-        result = refine(points, normals, degree, method=self.method, options=options, delta=self.delta,
-                        starts=starts or None, rng=self.rng, callback=report if self.progress is not None else None)
+        result = refine(points, normals, degree, method=method or self.method, options=options, delta=self.delta,
+                        starts=starts or None, keep_clear=keep_clear, rng=self.rng,
+                        callback=report if self.progress is not None else None)
         return (result.polynomial, tuple(result.solutions), result.nit, result.nfev, result.success,
                 result.message)
 
@@ -369,13 +372,18 @@ def _top_degree(n_points: int, dim: int, min_degree: int, max_degree: int | None
 
 
 def _clean_up(entry: DegreeResult, fitter: _Fitter, pts, unit, delta, faces, ordered_contour) -> DegreeResult:
-    """Refit a degree whose zero set is not clean with stronger far-field terms, started from
-    its fit; the first clean refit replaces it. Every attempt is recorded."""
+    """Try to make a degree whose zero set has spurious components clean: polish its fit again
+    with a far-field term that also holds samples of those components (so the zero set is pushed
+    off them), at each of the options' clean-up weights in turn; the first clean result replaces
+    it. Every attempt is recorded."""
+    places = _spurious_places(entry.polynomial, pts, faces, ordered_contour)
+    if places is None:
+        return entry
     attempts, best, nfev = [], entry, entry.nfev
     for weight in fitter.options.cleanup_weights:
-        options = fitter.options.replace(far_term_weight=weight)
+        options = fitter.options.replace(far_term_weight=weight, start_fits=())
         trial = _fit_degree(fitter, pts, unit, entry.degree, delta, "geometric", faces, ordered_contour,
-                            options=options, extra_starts=[entry.x])
+                            options=options, extra_starts=[entry.x], method="polish", keep_clear=places)
         q = trial.quality
         nfev += trial.nfev
         attempts.append({"far_term_weight": weight, "clean": trial.clean, "f_score": q.f_score,
@@ -387,10 +395,25 @@ def _clean_up(entry: DegreeResult, fitter: _Fitter, pts, unit, delta, faces, ord
     return dataclasses.replace(best, cleanup=tuple(attempts), seconds=seconds, nfev=nfev)
 
 
+def _spurious_places(poly: ImplicitPolynomial, pts, faces, ordered_contour, most: int = 400):
+    """Up to ``most`` points on the spurious components of ``poly``'s zero set (None if none)."""
+    zs = extract_zero_set(poly, points=pts)
+    flags = spurious_components(zs, pts, faces=faces, ordered_contour=bool(ordered_contour))
+    if not flags.any():
+        return None
+    labels = zs.component_labels
+    if zs.dim == 2:
+        places = np.concatenate([c for c, bad in zip(zs.curves, flags[labels]) if bad])
+    else:
+        places = zs.vertices[np.unique(zs.faces[flags[labels]])]
+    return places[:: max(1, len(places) // most)]
+
+
 def _fit_degree(fitter: _Fitter, pts, unit, degree, delta, rule, faces, ordered_contour, *, options=None,
-                extra_starts=()) -> DegreeResult:
+                extra_starts=(), method=None, keep_clear=None) -> DegreeResult:
     t0 = time.perf_counter()
-    poly, solutions, nit, nfev, success, message = fitter(pts, unit, degree, options, extra_starts)
+    poly, solutions, nit, nfev, success, message = fitter(pts, unit, degree, options, extra_starts, method,
+                                                          keep_clear)
     m = compute_measures(poly, pts, unit, delta=delta)
     poly = poly.with_coefficients(poly.coefficients, measures=m.to_dict())
     q = quality(poly, pts, faces=faces, ordered_contour=ordered_contour) if rule == "geometric" else None

@@ -135,10 +135,11 @@ class SearchOptions:
         on the bundled contours it traps the search near the lower degree's shape (airplane:
         degree 6 selected with F = 0.88 instead of degree 10 with F = 0.99; see
         ``docs/performance.md``).
-    cleanup_weights : tuple of float, default (1.0,)
-        When a degree's zero set is not clean (spurious components, or not closed), the
-        geometric rule of :func:`ipfit.fit_adaptive` refits that degree with these far-field
-        term weights, in order, before rejecting it; every attempt is recorded.
+    cleanup_weights : tuple of float, default (1.0, 10.0)
+        When a degree's zero set has spurious components, the geometric rule of
+        :func:`ipfit.fit_adaptive` polishes that degree's fit again with a far-field term that
+        also holds samples of those components (``refine(keep_clear=...)``), at these weights
+        in turn, before rejecting the degree; every attempt is recorded.
 
     Examples
     --------
@@ -171,7 +172,7 @@ class SearchOptions:
     stall_generations: int | None = 60
     stall_tolerance: float = 1e-4
     warm_start: bool = False
-    cleanup_weights: tuple[float, ...] = (1.0,)
+    cleanup_weights: tuple[float, ...] = (1.0, 10.0)
 
     def __post_init__(self) -> None:
         set_ = functools.partial(object.__setattr__, self)
@@ -250,9 +251,6 @@ class SearchOptions:
                             f"{name}={out[name]!r}", "Leave it unset or pick a method that uses it.")
             if out[name] is None:
                 out[name] = METHOD_DEFAULTS[name]
-        if method == "polish" and not self.start_fits:
-            raise error("start_fits", "at least one start fit for method='polish'", "none",
-                        "Pass start fits or use 'de+polish'.")
         return out
 
     def to_dict(self) -> dict[str, Any]:

@@ -29,6 +29,7 @@ from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 import scipy.linalg
+from scipy.spatial import cKDTree
 from numpy.typing import ArrayLike, NDArray
 
 from . import basis
@@ -135,8 +136,8 @@ _RENAMED = dict(population=into_options("population_size"), seed_fraction=into_o
 @renamed_keywords(**_RENAMED)
 def refine(points: ArrayLike, normals: ArrayLike, degree: int, method: str = DEFAULT_METHOD, *,
            options: SearchOptions | None = None, delta: float = DEFAULT_DELTA,
-           starts: Sequence[ImplicitPolynomial | ArrayLike] | None = None, rng=None,
-           callback: Callable[[OptimizeResult], Any] | None = None) -> RefineResult:
+           starts: Sequence[ImplicitPolynomial | ArrayLike] | None = None, keep_clear: ArrayLike | None = None,
+           rng=None, callback: Callable[[OptimizeResult], Any] | None = None) -> RefineResult:
     r"""Refine linear fits by minimising the paper's distance (Eq. 5) at a fixed degree.
 
     Parameters
@@ -158,6 +159,10 @@ def refine(points: ArrayLike, normals: ArrayLike, degree: int, method: str = DEF
     starts : sequence, optional
         Extra starting polynomials: :class:`~ipfit.ImplicitPolynomial` fitted to these points,
         or coefficient vectors in the normalised coordinates (``Normalization.from_points``).
+    keep_clear : (K, dim) array, optional
+        Places (user coordinates) the zero set must stay away from, e.g. the samples of a
+        spurious component: they join the far-field term's samples, each with the side of the
+        data it lies on (from the nearest point's normal). Needs a positive far-field term weight.
     rng : None, int or numpy.random.Generator
         Source of all randomness: a fixed value makes the run bit-reproducible (on the same
         machine and BLAS).
@@ -193,16 +198,28 @@ def refine(points: ArrayLike, normals: ArrayLike, degree: int, method: str = DEF
     settings = options.for_method(method)
     delta = check_nonnegative(delta, "delta")
     gen = check_rng(rng)
+    if keep_clear is not None:
+        keep_clear = as_points(keep_clear, "keep_clear", dims=(pts.shape[1],))
+        if settings["far_term_weight"] <= 0:
+            raise error("keep_clear", "a positive far_term_weight in the options", "far_term_weight=0",
+                        "Set options=...replace(far_term_weight=...) or drop keep_clear.")
     if callback is not None and not callable(callback):
         raise error("callback", "a callable or None", type(callback).__name__)
     # One BLAS thread for the whole run: the population objective parallelises over blocks of
     # points itself, and everything else is many small products, for which BLAS worker
     # threads only cost synchronisation (badly so when other processes compete for the cores).
     with single_threaded_blas():
-        return _refine(pts, unit_normals, degree, method, settings, delta, starts, gen, callback)
+        return _refine(pts, unit_normals, degree, method, settings, delta, starts, keep_clear, gen, callback)
 
 
-def _objectives(pts, unit_normals, degree, delta, settings):
+def _clear_targets(u: NDArray, unit_normals: NDArray, places: NDArray) -> NDArray:
+    """Signed distance of each place to the data: the side given by the nearest point's normal."""
+    dist, idx = cKDTree(u).query(places)
+    side = np.einsum("ij,ij->i", places - u[idx], unit_normals[idx])
+    return np.where(side < 0, -1.0, 1.0) * np.maximum(dist, 1e-12)
+
+
+def _objectives(pts, unit_normals, degree, delta, settings, keep_clear=None):
     """The float64 objective on all points (start fits' ranking, final polish, measures), the
     search's (on a well-spread subsample of ``search_points`` points, maybe in float32) and, when
     subsampled, the float64 objective on that subsample (the first polish stage)."""
@@ -210,9 +227,14 @@ def _objectives(pts, unit_normals, degree, delta, settings):
     u = norm.apply(pts)
     weight = settings["far_term_weight"]
 
+    extra = []
+    if keep_clear is not None:
+        places = norm.apply(keep_clear)
+        extra = [FarFieldTerm(places, _clear_targets(u, unit_normals, places), degree, weight)]
+
     def build(u_, n_, dtype=np.float64):
         terms = [FarFieldTerm.from_data(u_, n_, degree, weight)] if weight > 0 else []
-        return Objective(u_, n_, degree, delta, dtype=dtype, terms=terms)
+        return Objective(u_, n_, degree, delta, dtype=dtype, terms=terms + extra)
 
     obj64 = build(u, unit_normals)
     dtype = np.dtype(settings["dtype"])
@@ -327,21 +349,23 @@ def _solutions(template, pool, pool_fun, kept, obj64, pts, unit_normals, starts:
     return out
 
 
-def _refine(pts, unit_normals, degree, method, settings, delta, given_starts, gen, callback) -> RefineResult:
+def _refine(pts, unit_normals, degree, method, settings, delta, given_starts, keep_clear, gen,
+            callback) -> RefineResult:
     started = time.perf_counter()
     dim = pts.shape[1]
     d = basis.n_coefficients(dim, degree)
     size = settings["population_size"] or 4 * d
     if method.startswith("de") and size < 4:
         raise error("population_size", "at least 4 members for DE/rand/1", str(size))
-    norm, obj64, obj_pop, sub64 = _objectives(pts, unit_normals, degree, delta, settings)
+    norm, obj64, obj_pop, sub64 = _objectives(pts, unit_normals, degree, delta, settings, keep_clear)
     n_search = len(pts) if sub64 is None else sub64.n_points
     # The linear start fits see what the search sees: a QR of the full cloud's 3N rows per start
     # fit would cost more than the whole search on big clouds (the bunny: 80 s of 12 QRs at degree 8).
     starts = start_fits(pts, unit_normals, degree, norm, settings["start_fits"], given_starts,
                         far_term=settings["far_term_weight"] > 0, max_points=min(n_search, START_POINTS))
     if method == "polish" and not len(starts):
-        raise error("starts", "at least one start fit for method='polish'", "none")
+        raise error("starts", "at least one start fit or start polynomial for method='polish'", "none",
+                    "Pass start fits in options, starts=[...], or use 'de+polish'.")
     nfev = starts.rank(obj64)
     r, r_inv = _whitening(obj64 if sub64 is None else sub64)
 

@@ -34,9 +34,10 @@ __all__ = ["search_options", "refine_fit", "polish_fit", "adaptive_fit", "linear
 
 def search_options(cfg: Config) -> SearchOptions:
     """The search settings shared by every DE/PSO run of ``cfg``: the paper's objective (no
-    far-field term), the run's iterations, population and start fits."""
+    far-field term), every point and every iteration, the run's population and start fits."""
     changes: dict[str, Any] = {"iterations": cfg.iterations, "far_term_weight": 0.0,
-                               "population_size": cfg.population}
+                               "population_size": cfg.population, "search_points": None,
+                               "stall_generations": None, "cleanup_weights": ()}
     if cfg.seeds is not None:
         changes["start_fits"] = tuple(cfg.seeds)
     return RECOMMENDED.replace(**changes)
