@@ -34,6 +34,9 @@ __all__ = ["fit_adaptive", "AdaptiveResult", "DegreeResult", "select_degree", "s
            "fixed_degree_methods", "DEFAULT_MAX_DEGREE", "RULES"]
 
 
+#: L-BFGS iterations of a clean-up polish: the kept-clear samples act within the first hundred
+#: (on the bunny at degree 6, the spurious blobs are gone after 6 s of a 26 s, 1000-iteration polish).
+CLEANUP_POLISH_ITERATIONS = 200
 #: Maximum degree tried by default, per dimension (the paper: degrees 2 to 10 are the norm).
 DEFAULT_MAX_DEGREE = {2: 10, 3: 8}
 
@@ -381,7 +384,9 @@ def _clean_up(entry: DegreeResult, fitter: _Fitter, pts, unit, delta, faces, ord
         return entry
     attempts, best, nfev = [], entry, entry.nfev
     for weight in fitter.options.cleanup_weights:
-        options = fitter.options.replace(far_term_weight=weight, start_fits=())
+        options = fitter.options.replace(far_term_weight=weight, start_fits=(),
+                                         polish_iterations=min(CLEANUP_POLISH_ITERATIONS,
+                                                               fitter.options.for_method("polish")["polish_iterations"]))
         trial = _fit_degree(fitter, pts, unit, entry.degree, delta, "geometric", faces, ordered_contour,
                             options=options, extra_starts=[entry.x], method="polish", keep_clear=places)
         q = trial.quality
