@@ -170,3 +170,64 @@ def test_ctrl_c_keeps_every_finished_degree(tmp_path, monkeypatch):
     assert [d["degree"] for d in data["degrees"]] == [2, 4]
     assert data["adaptive"]["reason"] == "interrupted"
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no temporary files left
+
+
+def test_dataset_names_ignore_case_and_near_misses_get_a_suggestion(tmp_path, capsys):
+    assert main(["fit", "Boot", "-o", str(tmp_path / "b"), "--method", "3l", "--degree", "2", "--quiet"]) == 0
+    assert json.loads((tmp_path / "b.json").read_text())["input"]["source"] == "Boot"
+    assert main(["fit", "bot", "-o", str(tmp_path / "c"), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "Did you mean 'boot'?" in err and err.count("\n") == 1
+    assert not (tmp_path / "c.json").exists()
+
+
+def test_fixed_and_odd_degrees_say_what_they_are(tmp_path, capsys):
+    assert main(["fit", "boot", "-o", str(tmp_path / "b"), "--method", "3l", "--degree", "3", "--no-picture",
+                 "--no-zero-set"]) == 0
+    captured = capsys.readouterr()
+    assert "--degree 3 is odd: an odd-degree zero set is never bounded" in captured.err
+    assert "fixed degree 3" in captured.out
+    data = json.loads((tmp_path / "b.json").read_text())
+    assert data["adaptive"]["reason"] == "fixed" and data["degrees"][0]["reason"].startswith("selected")
+
+
+def test_messages_name_the_options_typed(tmp_path, capsys):
+    assert main(["fit", "airplane", "-o", str(tmp_path / "a"), "--method", "3l", "--max-degree", "30"]) == 2
+    assert capsys.readouterr().err.startswith("ipfit fit: error: --max-degree: expected at most 18")
+    with pytest.raises(SystemExit) as stop:
+        main(["fit", "airplane", "-o", str(tmp_path / "a"), "--seed", "-1"])
+    assert stop.value.code == 2 and "argument --seed: expected a whole number >= 0" in capsys.readouterr().err
+
+
+def test_progress_shows_each_stage_when_piped(tmp_path):
+    out = subprocess.run([sys.executable, "-m", "ipfit.cli", "fit", "boot", "-o", str(tmp_path / "b"), "--degree", "4",
+                          "--iterations", "20", "--no-picture", "--no-zero-set"], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    lines = out.stderr.splitlines()
+    assert lines[:3] == ["degree 4: fitting", "degree 4: DE", "degree 4: L-BFGS polish"]
+    assert lines[-1].startswith("degree 4: distance ")
+    quiet = subprocess.run([sys.executable, "-m", "ipfit.cli", "fit", "boot", "-o", str(tmp_path / "q"), "--degree",
+                            "2", "--method", "3l", "--quiet", "--no-picture"], capture_output=True, text=True)
+    assert quiet.returncode == 0 and quiet.stderr == "" and quiet.stdout == ""
+
+
+def test_progress_bar_on_a_terminal(tmp_path):
+    # A real pseudo-terminal: rich draws its bar there, with the stage and the quantity minimised.
+    import pty
+
+    pid, fd = pty.fork()
+    if pid == 0:  # the child runs the command on the terminal
+        os.execv(sys.executable, [sys.executable, "-m", "ipfit.cli", "fit", "boot", "-o", str(tmp_path / "b"),
+                                  "--degree", "4", "--iterations", "200", "--no-picture", "--no-zero-set"])
+    chunks = []
+    while True:
+        try:
+            data = os.read(fd, 4096)
+        except OSError:
+            break
+        if not data:
+            break
+        chunks.append(data)
+    os.waitpid(pid, 0)
+    screen = b"".join(chunks).decode("utf-8", "replace")
+    assert "degree 4: DE" in screen and "objective" in screen and "fixed degree 4" in screen

@@ -48,7 +48,9 @@ def load_input(spec: str, max_points: int | None = None) -> Input:
                 warnings.simplefilter("ignore")
                 faces = io.read_mesh(path).faces
         return Input(cloud.points, cloud.normals, path.stem, faces)
-    if spec in bundled.dataset_names():
+    name = bundled.resolve_name(spec)
+    if name is not None:
+        spec = name
         points, normals = bundled.load_dataset(spec)
         if max_points is not None and len(points) > max_points:
             keep = np.sort(np.random.default_rng(0).choice(len(points), max_points, replace=False))
@@ -57,7 +59,8 @@ def load_input(spec: str, max_points: int | None = None) -> Input:
             return Input(points[keep], normals[keep], spec)
         return Input(points, normals, spec, bundled.dataset_faces(spec))
     names = ", ".join(bundled.dataset_names())
-    raise ReadError(f"{spec}: no such file, nor a bundled dataset name ({names}). Check the path.")
+    raise ReadError(f"{spec}: no such file, nor a bundled dataset name ({names}).{bundled.suggestion(spec)} "
+                    "Check the path.")
 
 
 def _whole_number_at_least(minimum: int):

@@ -21,19 +21,25 @@ _OPTION_NAMES = {"max_degree": "--max-degree", "min_degree": "--degree", "rng": 
 NAME = "fit"
 HELP = "fit an implicit polynomial to a point file or a bundled dataset"
 DESCRIPTION = """\
-Fit an implicit polynomial to INPUT (a point file: PLY, OBJ, OFF, STL, XYZ/TXT/CSV, NPY/NPZ, or a
-silhouette image; or the name of a bundled dataset, see `ipfit datasets`).
+Fit an implicit polynomial to INPUT: a point file (PLY, OBJ, OFF, STL, glTF/GLB, 3MF, XYZ/TXT/CSV,
+NPY/NPZ, LAS/LAZ, PCD, E57 or a silhouette image; `ipfit datasets --formats` lists them) or the
+name of a bundled dataset (`ipfit datasets`).
 
 The degree is chosen adaptively (the paper's Algorithm 1, refusing degrees whose zero set has
-spurious components when a clean one exists) unless --degree N fixes it. The default method is
-DE + L-BFGS polish with a far-field term; --paper runs the paper's exact pipeline instead.
-Outputs, all written
-together or not at all:
+spurious components when a clean one exists, after trying to polish them away) unless --degree N
+fixes it. The default is the recommended pipeline (DE + L-BFGS polish with a far-field term);
+--paper runs the paper's exact pipeline instead. Every degree's reason (selected, rejected, not
+needed) is printed and stored in the JSON.
+
+Outputs, all written together or not at all (-o PREFIX, or -o PREFIX.json):
   PREFIX.json   coefficients, normalisation, measures, selected_degree and the per-degree table
   PREFIX.png    the points with the zero set of each degree tried and the smoothness curve
   PREFIX.ply    the zero-set mesh (3D)   |   PREFIX.svg + PREFIX.csv  the zero-set curves (2D)
+  PREFIX.html   with --html: an interactive viewer of every degree (works offline)
 
-Ctrl-C stops cleanly: the outputs keep every degree already finished.
+Odd degrees are accepted with a warning: their zero set is never bounded. Ctrl-C (or SIGTERM)
+stops cleanly: the outputs keep every degree already finished; before the first one, nothing
+is written.
 """
 
 

@@ -77,11 +77,28 @@ def dataset_names() -> list[str]:
     return list(_DATASETS)
 
 
+def resolve_name(name: str) -> str | None:
+    """The bundled dataset ``name`` refers to, ignoring case ("Boot" is "boot"); None if none."""
+    if not isinstance(name, str):
+        return None
+    folded = {key.casefold(): key for key in _DATASETS}
+    return folded.get(name.casefold())
+
+
+def suggestion(name: str) -> str:
+    """" Did you mean 'boot'?" for a near miss of a dataset name, else ""."""
+    import difflib
+
+    close = difflib.get_close_matches(str(name).casefold(), list(_DATASETS), n=1, cutoff=0.6)
+    return f" Did you mean {close[0]!r}?" if close else ""
+
+
 def _entry(name: str) -> _Entry:
-    if not isinstance(name, str) or name not in _DATASETS:
-        raise InvalidInputError(f"name: expected one of {', '.join(_DATASETS)}, got {name!r}. "
+    key = resolve_name(name)
+    if key is None:
+        raise InvalidInputError(f"name: expected one of {', '.join(_DATASETS)}, got {name!r}.{suggestion(name)} "
                                 "See ipfit.datasets.list_datasets() or `ipfit datasets`.")
-    return _DATASETS[name]
+    return _DATASETS[key]
 
 
 def dataset_path(name: str) -> Path:
@@ -90,7 +107,7 @@ def dataset_path(name: str) -> Path:
 
 
 def load_dataset(name: str) -> PointCloud:
-    """``(points, normals)`` of a bundled dataset (fresh copies: safe to modify)."""
+    """``(points, normals)`` of a bundled dataset (fresh copies: safe to modify); names ignore case."""
     points, normals, _ = _load(name)
     return PointCloud(points.copy(), normals.copy())
 
