@@ -6,6 +6,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 import ipfit
@@ -231,3 +232,25 @@ def test_progress_bar_on_a_terminal(tmp_path):
     os.waitpid(pid, 0)
     screen = b"".join(chunks).decode("utf-8", "replace")
     assert "degree 4: DE" in screen and "objective" in screen and "fixed degree 4" in screen
+
+
+@pytest.mark.parametrize("kind", ["line", "plane", "flat-circle"])
+def test_axis_aligned_lines_and_planes_are_fitted(tmp_path, kind):
+    x = np.linspace(-1, 1, 40)
+    if kind == "line":
+        pts = np.column_stack([x, 0 * x])
+    elif kind == "plane":
+        gx, gy = np.meshgrid(x[::3], x[::3])
+        pts = np.column_stack([gx.ravel(), gy.ravel(), 0 * gx.ravel()])
+    else:  # 2D points saved with a z = 0 column
+        t = np.linspace(0, 2 * np.pi, 60, endpoint=False)
+        pts = np.column_stack([np.cos(t), np.sin(t), 0 * t])
+    path = tmp_path / f"{kind}.csv"
+    np.savetxt(path, pts, delimiter=",")
+    assert main(["fit", str(path), "-o", str(tmp_path / "out"), "--iterations", "20", "--max-degree", "4",
+                 "--quiet", "--no-picture", "--no-zero-set"]) == 0
+    poly = ipfit.ImplicitPolynomial.load(tmp_path / "out.json")
+    off = np.zeros(pts.shape[1])
+    off[-1] = 0.5  # half a unit off the line/plane
+    scale = np.abs(poly(pts + off)).max()
+    assert np.abs(poly(pts)).max() < 1e-2 * scale  # the data lie on (or within 1% of) the zero set
