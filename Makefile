@@ -6,7 +6,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.ipfit-installed
 DEMO_OUT ?= demo-output
 
-.PHONY: demo test test-slow test-all bench reproduce clean
+.PHONY: demo test test-slow test-all bench bench-pipeline reproduce clean
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -31,9 +31,15 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_normals.py
 	$(BIN)/python benchmarks/bench_objective.py
 	$(BIN)/python benchmarks/bench_zeroset.py
+	$(BIN)/python benchmarks/bench_farfield.py
+
+# The recommended vs the paper's pipeline, `ipfit fit bunny`, and the scaling table up to a
+# million points: docs/performance.md and docs/spurious.md (about half an hour on 2 cores).
+bench-pipeline: $(STAMP)
+	$(BIN)/python benchmarks/bench_pipeline.py
 
 reproduce: $(STAMP)
-	$(BIN)/ipfit reproduce --out docs/reproduction
+	$(BIN)/ipfit reproduce -o docs/reproduction
 
 clean:
 	rm -rf $(VENV) $(DEMO_OUT) .pytest_cache
