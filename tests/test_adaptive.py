@@ -149,7 +149,10 @@ def test_every_result_type_speaks_scipys_vocabulary(rng):
     refined = ipfit.refine(shape.points, shape.normals, 2, options=opts, rng=rng)
     adaptive = fit_adaptive(shape.points, shape.normals, options=opts, max_degree=4, rng=rng)
     solver = DifferentialEvolution(lambda x: np.sum(x**2, axis=1), rng.normal(size=(8, 3)), maxiter=2, rng=rng).solve()
+    from ipfit._result import Result
+
     for res in (solver, refined, adaptive, adaptive.degrees[0]):
+        assert isinstance(res, Result)  # one definition of the shared fields
         assert isinstance(res.x, np.ndarray) and np.isfinite(res.fun)
         assert isinstance(res.nit, int) and isinstance(res.nfev, int) and res.nfev > 0
         assert res.success is True and isinstance(res.message, str) and res.message

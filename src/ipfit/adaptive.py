@@ -17,6 +17,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from . import basis
+from ._result import Result
 from ._validation import (as_faces, as_normals, as_points, check_choice, check_enough_points, check_int,
                           check_nonnegative, check_real, check_rng, error)
 from .linear import LINEAR_METHODS, fit_linear
@@ -47,7 +48,7 @@ def fixed_degree_methods() -> tuple[str, ...]:
 
 
 @dataclass(frozen=True, eq=False)
-class DegreeResult:
+class DegreeResult(Result):
     """What the adaptive loop found at one degree (SciPy's vocabulary, like every result).
 
     Attributes
@@ -61,12 +62,6 @@ class DegreeResult:
     solutions : the refinement's best distinct solutions (empty for a linear fit).
     """
 
-    x: NDArray[np.float64]
-    fun: float
-    nit: int
-    nfev: int
-    success: bool
-    message: str
     degree: int
     polynomial: ImplicitPolynomial
     measures: Measures
@@ -109,7 +104,7 @@ class DegreeResult:
 
 
 @dataclass(frozen=True, eq=False)
-class AdaptiveResult:
+class AdaptiveResult(Result):
     """Result of :func:`fit_adaptive`.
 
     Attributes
@@ -127,12 +122,6 @@ class AdaptiveResult:
     options : the search settings used by a refinement method (None for a linear fit).
     """
 
-    x: NDArray[np.float64]
-    fun: float
-    nit: int
-    nfev: int
-    success: bool
-    message: str
     polynomial: ImplicitPolynomial
     selected_degree: int
     degrees: tuple[DegreeResult, ...]

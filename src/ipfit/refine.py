@@ -34,6 +34,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from . import basis
 from ._numeric import unit_rows
+from ._result import Result
 from ._validation import (as_normals, as_points, check_choice, check_degree, check_enough_points,
                           check_nonnegative, check_rng, error)
 from .farfield import FarFieldTerm
@@ -58,7 +59,7 @@ _FLAT = 1e-12
 
 
 @dataclass(frozen=True, eq=False)
-class RefineResult:
+class RefineResult(Result):
     """Outcome of :func:`refine`, in SciPy's vocabulary.
 
     Attributes
@@ -83,12 +84,6 @@ class RefineResult:
     options : the resolved settings, and diagnostics, as a read-only mapping.
     """
 
-    x: NDArray[np.float64]
-    fun: float
-    nit: int
-    nfev: int
-    success: bool
-    message: str
     polynomial: ImplicitPolynomial
     measures: Measures
     history: NDArray[np.float64]

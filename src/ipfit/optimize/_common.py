@@ -9,13 +9,14 @@ from typing import Any, Callable, Iterator
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .._result import Result
 from .._validation import check_int, check_nonnegative, check_rng, error
 
 __all__ = ["OptimizeResult", "PopulationSolver"]
 
 
 @dataclass(frozen=True, eq=False)
-class OptimizeResult:
+class OptimizeResult(Result):
     """Outcome (or, passed to a callback, the current state) of a solver.
 
     Attributes
@@ -32,12 +33,6 @@ class OptimizeResult:
         callback's snapshot these are the live arrays: read, do not keep or modify.
     """
 
-    x: NDArray[np.float64]
-    fun: float
-    nit: int
-    nfev: int
-    success: bool = True
-    message: str = ""
     history: NDArray[np.float64] = field(default_factory=lambda: np.empty(0))
     population: NDArray[np.float64] | None = None
     population_fun: NDArray[np.float64] | None = None
