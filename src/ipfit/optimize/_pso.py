@@ -50,12 +50,13 @@ class ParticleSwarm(PopulationSolver):
 
     Examples
     --------
+    A swarm of 30 finds the minimum of an elongated bowl at (1, −2):
+
     >>> import numpy as np
-    >>> sphere = lambda x: np.sum((x - 0.5) ** 2, axis=1)
-    >>> start = np.random.default_rng(0).uniform(-1, 1, (20, 3))
-    >>> res = ParticleSwarm(sphere, start, maxiter=200, rng=1).solve()
-    >>> bool(res.fun < 1e-10)
-    True
+    >>> bowl = lambda x: (x[:, 0] - 1) ** 2 + 10 * (x[:, 1] + 2) ** 2
+    >>> swarm = ParticleSwarm(bowl, np.random.default_rng(0).normal(size=(30, 2)), maxiter=300, rng=1)
+    >>> np.round(swarm.solve().x, 4).tolist()
+    [1.0, -2.0]
     """
 
     name = "pso"
