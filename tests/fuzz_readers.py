@@ -78,6 +78,7 @@ def make_seeds(folder: Path) -> dict[str, Path]:
     put("ply-mesh", "m.ply").write_bytes(trimesh.exchange.ply.export_ply(ball, encoding="ascii"))
     put("glb", "m.glb").write_bytes(trimesh.Scene([ball, ball.copy().apply_translation([3, 0, 0])]).export(
         file_type="glb"))
+    put("dae", "m.dae").write_bytes(trimesh.exchange.dae.export_collada([ball, ball.copy().apply_translation([3, 0, 0])]))
     put("3mf", "m.3mf").write_bytes(trimesh.Scene([ball, ball.copy().apply_translation([3, 0, 0])]).export(
         file_type="3mf"))
     yy, xx = np.mgrid[:24, :24]

@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 from fuzz_readers import MUTATIONS, is_text, make_seeds, mutate, read_outcome
 
 FORMATS = ["ply-binary", "ply-ascii", "ply-mesh", "csv", "xyz", "npy", "npz", "obj", "off", "stl-binary",
-           "stl-ascii", "glb", "3mf", "png", "gif", "las", "laz", "pcd-ascii", "pcd-binary", "e57"]
+           "stl-ascii", "glb", "3mf", "dae", "png", "gif", "las", "laz", "pcd-ascii", "pcd-binary", "e57"]
 
 
 @pytest.fixture(scope="module")

@@ -59,6 +59,20 @@ def test_multi_mesh_3mf_is_merged_with_its_build_transforms(tmp_path):
     assert cloud.normals_source == "faces"  # 3MF stores no normals
 
 
+def test_multi_mesh_collada_is_merged(tmp_path):
+    import trimesh
+
+    path = tmp_path / "scene.dae"
+    moved = [trimesh.creation.box(extents=[1.0, 2.0, 3.0]).apply_translation([5.0, 0.0, -1.0]),
+             trimesh.creation.icosphere(subdivisions=1).apply_scale(2.0)]
+    path.write_bytes(trimesh.exchange.dae.export_collada(moved))
+    expected = np.concatenate([m.vertices for m in moved])
+    mesh = io.read_mesh(path, merge=False)
+    assert len(mesh.faces) == sum(len(m.faces) for m in moved)
+    distance, _ = cKDTree(mesh.points).query(expected)
+    assert distance.max() < 1e-5  # every transformed vertex is read where the scene put it
+
+
 def test_glb_without_normals_takes_them_from_the_faces(tmp_path):
     path = tmp_path / "ball.glb"
     ball = trimesh.creation.icosphere(subdivisions=2)

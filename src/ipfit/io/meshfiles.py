@@ -272,8 +272,8 @@ def read_stl(path: Path, raw: bytes) -> Raw:
 
 
 def read_scene(path: Path, raw: bytes) -> Raw:
-    """glTF 2.0 (.gltf with its buffers beside it, or .glb) and 3MF: every mesh of the scene,
-    each moved by its node's transform, merged into one cloud."""
+    """glTF 2.0 (.gltf with its buffers beside it, or .glb), 3MF and COLLADA (.dae): every mesh
+    of the scene, each moved by its node's transform, merged into one cloud."""
     import trimesh
     from trimesh.resolvers import FilePathResolver
 
@@ -282,6 +282,11 @@ def read_scene(path: Path, raw: bytes) -> Raw:
         from trimesh.exchange.threemf import load_3MF
 
         kind, load, kwargs = "3mf", load_3MF, {}
+    elif path.suffix.lower() == ".dae":
+        optional_module("collada", path, "COLLADA")
+        from trimesh.exchange.dae import load_collada
+
+        kind, load, kwargs = "dae", load_collada, {"resolver": FilePathResolver(str(path))}
     else:
         from trimesh.exchange import gltf
 

@@ -111,6 +111,8 @@ FORMATS: dict[str, Format] = {
     ".gltf": _GLTF,
     ".3mf": Format("3MF (3D printing; every mesh of the build, transforms applied)", "trimesh + lxml", read_scene,
                    "scanners"),
+    ".dae": Format("COLLADA (every mesh of the scene, node transforms applied)", "trimesh + pycollada", read_scene,
+                   "scanners"),
     ".xyz": _TABLE,
     ".txt": _TABLE,
     ".csv": _TABLE,
@@ -135,7 +137,7 @@ def read_points(path: str | os.PathLike, *, merge: bool = True, face_normals: bo
     ----------
     path : str or path
         Any suffix of :data:`READ_FORMATS`: ``.ply``, ``.obj``, ``.off``, ``.stl``, ``.glb``,
-        ``.gltf``, ``.3mf``, ``.xyz``, ``.txt``, ``.csv``, ``.npy``, ``.npz``, ``.las``, ``.laz``,
+        ``.gltf``, ``.3mf``, ``.dae``, ``.xyz``, ``.txt``, ``.csv``, ``.npy``, ``.npz``, ``.las``, ``.laz``,
         ``.pcd``, ``.e57`` or a silhouette image (``.png``, ``.gif``, ``.bmp``, ``.tif``,
         ``.jpg``...; the outer boundary of the largest shape, traced at subpixel precision,
         x right and y up in pixel units, with outward normals).
