@@ -383,7 +383,10 @@ def _clean_up(entry: DegreeResult, fitter: _Fitter, pts, unit, delta, faces, ord
         attempts.append({"far_term_weight": weight, "clean": trial.clean, "f_score": q.f_score,
                          "n_spurious": q.n_spurious, "closed": bool(q.closed), "seconds": trial.seconds})
         if trial.clean:
-            best = trial
+            # The degree's fit is still the method's, cleaned: keep its name (the JSON's
+            # "cleanup" records the polish).
+            kept = trial.polynomial.with_coefficients(trial.polynomial.coefficients, method=entry.polynomial.method)
+            best = dataclasses.replace(trial, polynomial=kept)
             break
     seconds = entry.seconds + sum(a["seconds"] for a in attempts)
     return dataclasses.replace(best, cleanup=tuple(attempts), seconds=seconds, nfev=nfev)
