@@ -156,13 +156,15 @@ def _generated(spec: str) -> list[_Task]:
 
 def expand_inputs(inputs: Iterable[Any] | Mapping[str, Any]) -> list[_Task]:
     """Files, folders (their point files), globs, bundled names, ``generated:N[:SEED]`` (the
-    :func:`~ipfit.datasets.collection`), ``{name: (points, normals)}`` or generated shapes ->
+    :func:`~ipfit.datasets.collection`), ``{name: (points, normals)}`` mappings or generated shapes ->
     one task per shape, with unique names (a repeated file stem gets ``-2``, ``-3``, ...)."""
     from .datasets import bundled
     from .datasets.collection import GeneratedShape
 
     tasks: list[_Task] = []
-    items = inputs.items() if isinstance(inputs, Mapping) else [(None, item) for item in inputs]
+    items = []
+    for item in [inputs] if isinstance(inputs, Mapping) else inputs:
+        items += item.items() if isinstance(item, Mapping) else [(None, item)]
     for name, item in items:
         if name is not None:
             points, normals = item if isinstance(item, tuple) else (item, None)

@@ -23,7 +23,7 @@ if TYPE_CHECKING:
     import argparse
     from typing import Sequence
 
-SUBCOMMANDS = ("fit", "normals", "mesh", "plot", "view", "score", "datasets", "reproduce")
+SUBCOMMANDS = ("fit", "batch", "normals", "mesh", "plot", "view", "score", "datasets", "reproduce")
 
 
 def build_parser() -> argparse.ArgumentParser:
