@@ -1,0 +1,180 @@
+"""Linear fits of clouds bigger than memory: a Dask array of points and normals, chunk by chunk.
+
+:func:`fit_chunked` runs the 3L, ridge, gradient-one and least-squares fits of
+:mod:`ipfit.linear` on a chunked cloud without ever building its design matrix: each chunk's
+rows are reduced to the small (d + 1) × (d + 1) triangular factor R of their QR (in row
+blocks, by the same generators the in-memory fits use), the chunks' factors are stacked and
+factorised once more (a tall-skinny QR across chunks) and the small system is solved as
+in memory. Peak memory is a few chunks (Dask runs chunks in parallel) plus one row block.
+
+What needs the whole cloud at once is computed differently:
+
+* the normalisation (centre and mean distance) by two chunked reductions, which equal
+  :meth:`~ipfit.Normalization.from_points` up to rounding;
+* the ridge penalty's power sums by a chunked reduction (exact);
+* the far-field rows (``far_row_weight > 0``) and the sign of the result (f > 0 outside)
+  come from an evenly spaced subsample of ``sample_size`` points (the whole cloud when it
+  is no bigger), whose box and kd-tree stand for the cloud's: the far-field samples are
+  drawn in the subsample's box at its distances. Up to ``sample_size`` points the fit is
+  therefore the in-memory fit, to rounding.
+
+The measures and the polish are not chunked (they are per-shape refinements).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Iterable
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ._numeric import unit_rows
+from ._validation import check_choice, check_degree, check_enough_points, check_int, error
+from .exceptions import ReadError
+from .linear import _PARAMS, LINEAR_METHODS, _fit_problem, _Problem, _r_of_blocks
+from .polynomial import ImplicitPolynomial, Normalization
+
+__all__ = ["fit_chunked", "open_cloud", "CHUNKED_METHODS", "DEFAULT_SAMPLE_SIZE"]
+
+#: The linear fits that run chunk by chunk (Taubin's centring needs the whole cloud).
+CHUNKED_METHODS = ("lstsq", "3l", "ridge", "gradient_one", "3l-far")
+DEFAULT_SAMPLE_SIZE = 100_000
+
+
+def _as_dask(array, name: str, chunk_rows: int):
+    import dask.array as da
+
+    if isinstance(array, da.Array):
+        out = array
+    else:
+        out = da.from_array(array, chunks=(chunk_rows, -1))
+    if out.ndim != 2 or out.shape[1] not in (2, 3):
+        raise error(name, "an (N, 2) or (N, 3) array", f"shape {out.shape}")
+    return out.rechunk({1: -1}).astype(np.float64)
+
+
+def open_cloud(path: str | Path, chunk_rows: int = 1 << 20):
+    """(points, normals) Dask arrays of a cloud stored as ``.npy`` files, memory-mapped.
+
+    ``path`` is a folder holding ``points.npy`` and ``normals.npy`` (cut into chunks of
+    ``chunk_rows`` rows), or chunk files ``points-*.npy`` / ``normals-*.npy`` (one chunk
+    each, in name order).
+    """
+    import dask.array as da
+
+    folder = Path(path)
+
+    def load(file: Path):
+        try:
+            return np.load(file, mmap_mode="r")
+        except (OSError, ValueError) as exc:
+            raise ReadError(f"{file}: not a readable .npy array ({exc}). Check the file.") from None
+
+    if (folder / "points.npy").is_file() and (folder / "normals.npy").is_file():
+        return tuple(da.from_array(load(folder / f"{n}.npy"), chunks=(chunk_rows, -1)) for n in ("points", "normals"))
+    points, normals = sorted(folder.glob("points-*.npy")), sorted(folder.glob("normals-*.npy"))
+    if not points or len(points) != len(normals):
+        raise ReadError(f"{folder}: expected points.npy and normals.npy, or as many points-*.npy as normals-*.npy "
+                        "chunk files. Check the folder.")
+    return tuple(da.concatenate([da.from_array(load(f), chunks=-1) for f in files]) for files in (points, normals))
+
+
+@dataclass(frozen=True)
+class _ChunkedProblem(_Problem):
+    """A :class:`~ipfit.linear._Problem` whose ``u`` is a subsample; the rows come chunk by chunk."""
+
+    points: Any = None  # dask (N, dim), user coordinates
+    cloud_normals: Any = None
+    total: int = 0
+    scheduler: Any = field(default=None)
+
+    @property
+    def n_points(self) -> int:
+        return self.total
+
+    def _per_chunk(self, reduce: Callable[[_Problem], Any]) -> list:
+        import dask
+
+        norm, degree = self.normalization, self.degree
+        pairs = zip(self.points.to_delayed().ravel(), self.cloud_normals.to_delayed().ravel())
+
+        def one(points, normals):
+            return reduce(_Problem(norm.apply(points), unit_rows(np.asarray(normals, dtype=np.float64)), norm, degree))
+
+        return list(dask.compute(*(dask.delayed(one)(p, n) for p, n in pairs), scheduler=self.scheduler))
+
+    def blocks(self, make: Callable[..., Iterable[NDArray]], *args) -> Iterable[NDArray]:
+        # R of each chunk's rows has the R of those rows: stacking them loses nothing.
+        return self._per_chunk(lambda sub: _r_of_blocks(make(sub, *args)))
+
+    def power_sums(self, top: int) -> NDArray[np.float64]:
+        return np.sum(self._per_chunk(lambda sub: _Problem.power_sums(sub, top)), axis=0)
+
+
+def _normalization(points, scheduler) -> Normalization:
+    import dask
+
+    center = dask.compute(points.mean(axis=0), scheduler=scheduler)[0]
+    scale = float(dask.compute(np.sqrt(((points - center) ** 2).sum(axis=1)).mean(), scheduler=scheduler)[0])
+    if not scale > 0:
+        raise error("points", "points that are not all identical", "one repeated point",
+                    "Pass a point cloud with some extent.")
+    return Normalization(np.asarray(center, dtype=np.float64), scale)
+
+
+def fit_chunked(points, normals, degree: int, method: str = "3l", *, chunk_rows: int = 1 << 20,
+                sample_size: int = DEFAULT_SAMPLE_SIZE, scheduler=None, **params: float) -> ImplicitPolynomial:
+    """A linear fit of a chunked cloud (Dask arrays, memmaps or arrays), as :func:`ipfit.fit_linear`.
+
+    Parameters
+    ----------
+    points, normals : (N, dim) Dask arrays (e.g. from :func:`open_cloud`), or arrays and
+        memmaps cut into chunks of ``chunk_rows`` rows. ``normals`` may be None for 'lstsq'.
+    degree : int
+    method : one of :data:`CHUNKED_METHODS`, with its parameters (``c``, ``kappa``, ``mu``,
+        ``far_row_weight``) as in :func:`ipfit.fit_linear`.
+    sample_size : points of the evenly spaced subsample used for the far-field rows and the sign.
+    scheduler : passed to ``dask.compute`` (default: Dask's current one, e.g. a Client's).
+
+    Examples
+    --------
+    >>> import dask.array as da
+    >>> from ipfit import fit_3l
+    >>> from ipfit.datasets.synthetic import torus
+    >>> shape = torus(3000)
+    >>> chunked = fit_chunked(da.from_array(shape.points, chunks=(700, 3)), da.from_array(shape.normals, chunks=(700, 3)),
+    ...                       4, "3l", scheduler="sync")
+    >>> bool(np.allclose(chunked.coefficients, fit_3l(shape.points, shape.normals, 4).coefficients, rtol=1e-10))
+    True
+    """
+    method = check_choice(method, "method", CHUNKED_METHODS)
+    degree = check_degree(degree)
+    chunk_rows = check_int(chunk_rows, "chunk_rows", minimum=1)
+    sample_size = check_int(sample_size, "sample_size", minimum=1)
+    checks = _PARAMS[method]
+    for name in params:
+        if name not in checks:
+            raise error(name, f"a parameter of the {method!r} fit ({', '.join(checks) or 'no parameters'})",
+                        "an unknown name")
+    params = {name: checks[name](value) for name, value in params.items()}
+    spec = LINEAR_METHODS[method]
+    pts = _as_dask(points, "points", chunk_rows)
+    if normals is None:
+        if spec.needs_normals:
+            raise error("normals", f"unit normals for the {method} fit", "None", "Pass the normals or use 'lstsq'.")
+        nrm = pts * 0.0
+    else:
+        nrm = _as_dask(normals, "normals", chunk_rows)
+        if nrm.shape != pts.shape:
+            raise error("normals", f"an array of the points' shape {pts.shape}", f"shape {nrm.shape}")
+        nrm = nrm.rechunk(pts.chunks)
+    n = int(pts.shape[0])
+    check_enough_points(n, pts.shape[1], degree)
+    norm = _normalization(pts, scheduler)
+    take = np.unique(np.linspace(0, n - 1, min(n, sample_size)).round().astype(np.int64))
+    sample, sample_normals = (np.asarray(a[take].compute(scheduler=scheduler), dtype=np.float64) for a in (pts, nrm))
+    problem = _ChunkedProblem(norm.apply(sample), None if normals is None else unit_rows(sample_normals), norm, degree,
+                              points=pts, cloud_normals=nrm, total=n, scheduler=scheduler)
+    return _fit_problem(method, problem, params, n_points=n, sample_size=len(take), chunks=len(pts.chunks[0]))
