@@ -389,10 +389,11 @@ def fit_many(inputs, *, client=None, workers: int | None = None, scheduler: str 
 
 def _check_settings(settings: FitSettings) -> None:
     """Bad settings fail once, here, not once per shape on the workers."""
+    from . import basis
     from .adaptive import fit_adaptive
     from .datasets.synthetic import circle
 
-    shape = circle(12)
+    shape = circle(basis.n_coefficients(2, max(2, check_int(settings.min_degree, "min_degree", minimum=1))) + 2)
     try:
         fit_adaptive(shape.points, shape.normals, method="lstsq" if callable(settings.method) else settings.method,
                      options=settings.options if not callable(settings.method) else None,
