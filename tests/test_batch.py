@@ -206,3 +206,35 @@ def test_ctrl_c_cancels_pending_shapes_keeps_finished_ones_and_writes_the_summar
     for name in finished:
         load_result(out / f"{name}.json")  # complete, valid files only
     assert not [p for p in out.iterdir() if p.suffix not in (".json", ".csv")]  # no temporaries left
+
+
+def _events(total=3):
+    counts = [("a", "ok", None), ("b", "failed", "ReadError: b.xyz: not a point file."), ("c", "ok", None)]
+    done = failed = 0
+    for i, (name, status, err) in enumerate(counts[:total]):
+        done, failed = done + (status == "ok"), failed + (status == "failed")
+        yield {"event": "shape", "name": name, "status": status, "error": err, "done": done, "failed": failed,
+               "skipped": 0, "running": min(2, total - i - 1), "total": total, "elapsed": 1.0 + i,
+               "eta": None if i == 0 else 2.0 * (total - i - 1)}
+
+
+@pytest.mark.parametrize("mode", ["off", "lines", "bar"])
+def test_batch_progress_modes(mode):
+    import io
+
+    from ipfit.cli.batch import BatchProgress
+
+    stream = io.StringIO()
+    shown = BatchProgress(mode, stream)
+    for event in _events():
+        shown(event)
+    shown.close()
+    text = stream.getvalue()
+    if mode == "off":
+        assert text == ""
+    elif mode == "lines":
+        lines = text.splitlines()
+        assert len(lines) == 3 and lines[1].startswith("[2/3] b: failed: ReadError: b.xyz")
+        assert "1 done, 1 failed, 1 running, ETA 2 s" in lines[1] and "ETA ?" in lines[0]
+    else:
+        assert "b: failed: ReadError" in text  # failures are printed above the bar

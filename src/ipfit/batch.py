@@ -356,6 +356,15 @@ def fit_many(inputs, *, client=None, workers: int | None = None, scheduler: str 
     Returns
     -------
     BatchResult
+
+    Examples
+    --------
+    >>> from ipfit.datasets import collection
+    >>> batch = fit_many(collection(2), method="3l", max_degree=2, workers=1)  # an embedded cluster
+    >>> [(row["name"], row["status"], row["selected_degree"]) for row in batch.rows]
+    [('star-0000', 'ok', 2), ('blob-0001', 'ok', 2)]
+
+    With a notebook's own cluster: ``fit_many(inputs, client=Client("tcp://host:8786"))``.
     """
     tasks = expand_inputs(inputs)
     settings = FitSettings(method, options, min_degree, max_degree, epsilon, delta, rule,
@@ -377,13 +386,13 @@ def fit_many(inputs, *, client=None, workers: int | None = None, scheduler: str 
             rows[task.name], results[task.name] = _row_of(task, stored, "skipped"), stored
         else:
             todo.append(task)
-    interrupted = False
-    if todo:
-        interrupted = _run(todo, settings, client, workers, scheduler, folder, rows, results, progress, len(tasks),
-                           start)
-    batch = BatchResult(tuple(rows[t.name] for t in tasks), results, interrupted, time.perf_counter() - start)
-    if folder is not None:
-        write_summary(folder, batch)
+    # The summary is written before the cluster stops: stopping it may take seconds, and a
+    # second Ctrl-C then must not lose the summary of the first.
+    with _client_for(client, workers, scheduler) if todo else contextlib.nullcontext() as active:
+        interrupted = bool(todo) and _run(active, todo, settings, folder, rows, results, progress, len(tasks), start)
+        batch = BatchResult(tuple(rows[t.name] for t in tasks), results, interrupted, time.perf_counter() - start)
+        if folder is not None:
+            write_summary(folder, batch)
     return batch
 
 
@@ -413,43 +422,42 @@ def _stop_at_once(event: dict) -> None:
     raise _Checked
 
 
-def _run(todo, settings, client, workers, scheduler, folder, rows, results, progress, total, start) -> bool:
+def _run(active, todo, settings, folder, rows, results, progress, total, start) -> bool:
     from distributed import as_completed
 
-    with _client_for(client, workers, scheduler) as active:
-        token = uuid.uuid4().hex[:8]
-        futures = {active.submit(_fit_task, task, settings, key=f"ipfit-fit-{token}-{i}", pure=False, retries=0): task
-                   for i, task in enumerate(todo)}
-        slots = max(1, sum(active.nthreads().values()))
-        counts = {"done": 0, "failed": 0}
-        fit_started = time.perf_counter()
-        try:
-            for future in as_completed(futures):
-                task = futures[future]
-                try:
-                    out = future.result()
-                except Exception as exc:  # noqa: BLE001 - the worker died (KilledWorker) or the task was lost
-                    reason = "the worker process running it died" if type(exc).__name__ == "KilledWorker" else \
-                        _one_line(exc)
-                    out = {"row": _row(task, status="failed", error=reason), "result": None}
-                row, payload = out["row"], out["result"]
-                if payload is not None and folder is not None:
-                    from .results import write_result
+    token = uuid.uuid4().hex[:8]
+    futures = {active.submit(_fit_task, task, settings, key=f"ipfit-fit-{token}-{i}", pure=False, retries=0): task
+               for i, task in enumerate(todo)}
+    slots = max(1, sum(active.nthreads().values()))
+    counts = {"done": 0, "failed": 0}
+    fit_started = time.perf_counter()
+    try:
+        for future in as_completed(futures):
+            task = futures[future]
+            try:
+                out = future.result()
+            except Exception as exc:  # noqa: BLE001 - the worker died (KilledWorker) or the task was lost
+                reason = "the worker process running it died" if type(exc).__name__ == "KilledWorker" else \
+                    _one_line(exc)
+                out = {"row": _row(task, status="failed", error=reason), "result": None}
+            row, payload = out["row"], out["result"]
+            if payload is not None and folder is not None:
+                from .results import write_result
 
-                    write_result(folder / f"{task.name}.json", payload)
-                rows[task.name] = row
-                if payload is not None:
-                    results[task.name] = payload
-                counts["done" if row["status"] == "ok" else "failed"] += 1
-                if progress is not None:
-                    progress(_event(row, counts, len(todo), total, slots, fit_started, start))
-        except KeyboardInterrupt:
-            pending = [f for f, t in futures.items() if t.name not in rows]
-            with contextlib.suppress(Exception):
-                active.cancel(pending)
-            for task in todo:
-                rows.setdefault(task.name, _row(task, status="cancelled"))
-            return True
+                write_result(folder / f"{task.name}.json", payload)
+            rows[task.name] = row
+            if payload is not None:
+                results[task.name] = payload
+            counts["done" if row["status"] == "ok" else "failed"] += 1
+            if progress is not None:
+                progress(_event(row, counts, len(todo), total, slots, fit_started, start))
+    except KeyboardInterrupt:
+        pending = [f for f, t in futures.items() if t.name not in rows]
+        with contextlib.suppress(Exception):
+            active.cancel(pending)
+        for task in todo:
+            rows.setdefault(task.name, _row(task, status="cancelled"))
+        return True
     return False
 
 

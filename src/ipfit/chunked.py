@@ -55,30 +55,57 @@ def _as_dask(array, name: str, chunk_rows: int):
     return out.rechunk({1: -1}).astype(np.float64)
 
 
-def open_cloud(path: str | Path, chunk_rows: int = 1 << 20):
-    """(points, normals) Dask arrays of a cloud stored as ``.npy`` files, memory-mapped.
+def _npy_shape(file: Path) -> tuple[tuple[int, ...], np.dtype]:
+    try:
+        header = np.load(file, mmap_mode="r")  # reads the header only
+    except (OSError, ValueError) as exc:
+        raise ReadError(f"{file}: not a readable .npy array ({exc}). Check the file.") from None
+    shape, dtype = header.shape, header.dtype
+    del header
+    return shape, dtype
 
-    ``path`` is a folder holding ``points.npy`` and ``normals.npy`` (cut into chunks of
+
+def _read_rows(file: str, start: int, stop: int) -> NDArray:
+    # A copy of the rows, the map closed at once: pages of a map kept open would stay in the
+    # process's resident memory until the whole fit ends.
+    rows = np.load(file, mmap_mode="r")
+    try:
+        return np.array(rows[start:stop], dtype=np.float64)
+    finally:
+        del rows
+
+
+def _lazy_rows(file: Path, chunk_rows: int):
+    import dask
+    import dask.array as da
+
+    shape, _ = _npy_shape(file)
+    if len(shape) != 2 or shape[1] not in (2, 3):
+        raise ReadError(f"{file}: expected an (N, 2) or (N, 3) array, got shape {shape}. Check the file.")
+    pieces = [da.from_delayed(dask.delayed(_read_rows, pure=True)(str(file), a, min(a + chunk_rows, shape[0])),
+                              (min(a + chunk_rows, shape[0]) - a, shape[1]), dtype=np.float64)
+              for a in range(0, shape[0], chunk_rows)]
+    return da.concatenate(pieces) if len(pieces) > 1 else pieces[0]
+
+
+def open_cloud(path: str | Path, chunk_rows: int = 1 << 20):
+    """(points, normals) Dask arrays of a cloud stored as ``.npy`` files, read chunk by chunk.
+
+    ``path`` is a folder holding ``points.npy`` and ``normals.npy`` (read in chunks of
     ``chunk_rows`` rows), or chunk files ``points-*.npy`` / ``normals-*.npy`` (one chunk
-    each, in name order).
+    each, in name order, unless bigger than ``chunk_rows``). Nothing is read until the
+    arrays are computed, and each task keeps only its own rows.
     """
     import dask.array as da
 
     folder = Path(path)
-
-    def load(file: Path):
-        try:
-            return np.load(file, mmap_mode="r")
-        except (OSError, ValueError) as exc:
-            raise ReadError(f"{file}: not a readable .npy array ({exc}). Check the file.") from None
-
     if (folder / "points.npy").is_file() and (folder / "normals.npy").is_file():
-        return tuple(da.from_array(load(folder / f"{n}.npy"), chunks=(chunk_rows, -1)) for n in ("points", "normals"))
+        return tuple(_lazy_rows(folder / f"{n}.npy", chunk_rows) for n in ("points", "normals"))
     points, normals = sorted(folder.glob("points-*.npy")), sorted(folder.glob("normals-*.npy"))
     if not points or len(points) != len(normals):
         raise ReadError(f"{folder}: expected points.npy and normals.npy, or as many points-*.npy as normals-*.npy "
                         "chunk files. Check the folder.")
-    return tuple(da.concatenate([da.from_array(load(f), chunks=-1) for f in files]) for files in (points, normals))
+    return tuple(da.concatenate([_lazy_rows(f, chunk_rows) for f in files]) for files in (points, normals))
 
 
 @dataclass(frozen=True)
