@@ -105,6 +105,9 @@ def test_resume_skips_shapes_fitted_with_the_same_settings(client, tmp_path):
     with open(tmp_path / "summary.csv", newline="") as fh:
         table = list(csv.DictReader(fh))
     assert tuple(table[0]) == COLUMNS and [r["name"] for r in table] == [s.name for s in shapes]
+    pq = pytest.importorskip("pyarrow.parquet")
+    parquet = pq.read_table(tmp_path / "summary.parquet").to_pylist()
+    assert parquet == [{k: row[k] for k in COLUMNS} for row in changed.rows]
 
 
 def test_a_corrupt_file_and_a_killed_worker_are_failed_rows(client, tmp_path):
@@ -238,3 +241,12 @@ def test_batch_progress_modes(mode):
         assert "1 done, 1 failed, 1 running, ETA 2 s" in lines[1] and "ETA ?" in lines[0]
     else:
         assert "b: failed: ReadError" in text  # failures are printed above the bar
+
+
+@pytest.mark.slow
+def test_an_unreachable_scheduler_is_one_line(tmp_path, capsys):
+    _write_shapes(tmp_path / "in", 1)
+    assert main(["batch", str(tmp_path / "in"), "-o", str(tmp_path / "out"), "--scheduler", "tcp://127.0.0.1:9",
+                 "--method", "3l"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--scheduler: cannot connect to tcp://127.0.0.1:9" in err

@@ -5,7 +5,8 @@
 rows are reduced to the small (d + 1) × (d + 1) triangular factor R of their QR (in row
 blocks, by the same generators the in-memory fits use), the chunks' factors are stacked and
 factorised once more (a tall-skinny QR across chunks) and the small system is solved as
-in memory. Peak memory is a few chunks (Dask runs chunks in parallel) plus one row block.
+in memory. Peak memory is ``in_flight`` chunks (computed at once, by default as many as
+there are cores) and their row blocks, whatever the number of points.
 
 What needs the whole cloud at once is computed differently:
 
@@ -23,7 +24,8 @@ The measures and the polish are not chunked (they are per-shape refinements).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import os
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Iterable
 
@@ -109,28 +111,49 @@ def open_cloud(path: str | Path, chunk_rows: int = 1 << 20):
 
 
 @dataclass(frozen=True)
+class _Chunks:
+    """The cloud's (points, normals) chunks, mapped a few at a time so that memory stays bounded."""
+
+    points: Any  # dask (N, dim), user coordinates
+    normals: Any
+    scheduler: Any = None
+    in_flight: int = 2
+
+    @property
+    def starts(self) -> NDArray[np.int64]:
+        return np.concatenate([[0], np.cumsum(self.points.chunks[0])[:-1]]).astype(np.int64)
+
+    def map(self, func: Callable[[NDArray, NDArray, int], Any]) -> list:
+        """``func(points, normals, first_row)`` of every chunk, ``in_flight`` chunks at a time
+        (Dask would otherwise read chunks ahead of the tasks that consume them)."""
+        import dask
+
+        pairs = list(zip(self.points.to_delayed().ravel(), self.normals.to_delayed().ravel(), self.starts))
+        out: list = []
+        for wave in range(0, len(pairs), self.in_flight):
+            out += dask.compute(*(dask.delayed(func)(p, n, int(start)) for p, n, start in
+                                  pairs[wave: wave + self.in_flight]), scheduler=self.scheduler)
+        return out
+
+
+@dataclass(frozen=True)
 class _ChunkedProblem(_Problem):
     """A :class:`~ipfit.linear._Problem` whose ``u`` is a subsample; the rows come chunk by chunk."""
 
-    points: Any = None  # dask (N, dim), user coordinates
-    cloud_normals: Any = None
+    chunks: Any = None
     total: int = 0
-    scheduler: Any = field(default=None)
 
     @property
     def n_points(self) -> int:
         return self.total
 
     def _per_chunk(self, reduce: Callable[[_Problem], Any]) -> list:
-        import dask
-
         norm, degree = self.normalization, self.degree
-        pairs = zip(self.points.to_delayed().ravel(), self.cloud_normals.to_delayed().ravel())
 
-        def one(points, normals):
+        def one(points, normals, start):
             return reduce(_Problem(norm.apply(points), unit_rows(np.asarray(normals, dtype=np.float64)), norm, degree))
 
-        return list(dask.compute(*(dask.delayed(one)(p, n) for p, n in pairs), scheduler=self.scheduler))
+        return self.chunks.map(one)
 
     def blocks(self, make: Callable[..., Iterable[NDArray]], *args) -> Iterable[NDArray]:
         # R of each chunk's rows has the R of those rows: stacking them loses nothing.
@@ -140,19 +163,27 @@ class _ChunkedProblem(_Problem):
         return np.sum(self._per_chunk(lambda sub: _Problem.power_sums(sub, top)), axis=0)
 
 
-def _normalization(points, scheduler) -> Normalization:
-    import dask
-
-    center = dask.compute(points.mean(axis=0), scheduler=scheduler)[0]
-    scale = float(dask.compute(np.sqrt(((points - center) ** 2).sum(axis=1)).mean(), scheduler=scheduler)[0])
+def _normalization(chunks: _Chunks, n: int) -> Normalization:
+    center = np.sum(chunks.map(lambda p, _, start: np.asarray(p, dtype=np.float64).sum(axis=0)), axis=0) / n
+    scale = float(np.sum(chunks.map(lambda p, _, start: np.linalg.norm(p - center, axis=1).sum())) / n)
     if not scale > 0:
         raise error("points", "points that are not all identical", "one repeated point",
                     "Pass a point cloud with some extent.")
-    return Normalization(np.asarray(center, dtype=np.float64), scale)
+    return Normalization(center, scale)
+
+
+def _subsample(chunks: _Chunks, take: NDArray[np.int64]) -> tuple[NDArray, NDArray]:
+    def rows(points, normals, start):
+        local = take[(take >= start) & (take < start + len(points))] - start
+        return np.asarray(points[local], dtype=np.float64), np.asarray(normals[local], dtype=np.float64)
+
+    parts = chunks.map(rows)
+    return np.concatenate([p for p, _ in parts]), np.concatenate([q for _, q in parts])
 
 
 def fit_chunked(points, normals, degree: int, method: str = "3l", *, chunk_rows: int = 1 << 20,
-                sample_size: int = DEFAULT_SAMPLE_SIZE, scheduler=None, **params: float) -> ImplicitPolynomial:
+                sample_size: int = DEFAULT_SAMPLE_SIZE, scheduler=None, in_flight: int | None = None,
+                **params: float) -> ImplicitPolynomial:
     """A linear fit of a chunked cloud (Dask arrays, memmaps or arrays), as :func:`ipfit.fit_linear`.
 
     Parameters
@@ -164,6 +195,8 @@ def fit_chunked(points, normals, degree: int, method: str = "3l", *, chunk_rows:
         ``far_row_weight``) as in :func:`ipfit.fit_linear`.
     sample_size : points of the evenly spaced subsample used for the far-field rows and the sign.
     scheduler : passed to ``dask.compute`` (default: Dask's current one, e.g. a Client's).
+    in_flight : chunks computed at once (default: the number of cores; with a cluster, its
+        number of worker threads): peak memory is about this many chunks and row blocks.
 
     Examples
     --------
@@ -199,9 +232,10 @@ def fit_chunked(points, normals, degree: int, method: str = "3l", *, chunk_rows:
         nrm = nrm.rechunk(pts.chunks)
     n = int(pts.shape[0])
     check_enough_points(n, pts.shape[1], degree)
-    norm = _normalization(pts, scheduler)
+    chunks = _Chunks(pts, nrm, scheduler, check_int(in_flight or os.cpu_count() or 1, "in_flight", minimum=1))
+    norm = _normalization(chunks, n)
     take = np.unique(np.linspace(0, n - 1, min(n, sample_size)).round().astype(np.int64))
-    sample, sample_normals = (np.asarray(a[take].compute(scheduler=scheduler), dtype=np.float64) for a in (pts, nrm))
+    sample, sample_normals = _subsample(chunks, take)
     problem = _ChunkedProblem(norm.apply(sample), None if normals is None else unit_rows(sample_normals), norm, degree,
-                              points=pts, cloud_normals=nrm, total=n, scheduler=scheduler)
+                              chunks=chunks, total=n)
     return _fit_problem(method, problem, params, n_points=n, sample_size=len(take), chunks=len(pts.chunks[0]))
