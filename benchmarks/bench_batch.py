@@ -240,6 +240,7 @@ def main() -> None:
     parser.add_argument("--skip-default", action="store_true")
     parser.add_argument("--cloud-folder", default=None)
     parser.add_argument("--output", default=str(REPO / "docs" / "scaling.md"))
+    parser.add_argument("--batch-results", metavar="JSON", help="reuse part 1's results (its JSON line) from a run")
     parser.add_argument("--child", nargs=2, metavar=("FOLDER", "N"), help=argparse.SUPPRESS)
     parser.add_argument("--compare", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
@@ -250,8 +251,11 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(args.cloud_folder) if args.cloud_folder else Path(tmp) / "cloud"
         chunked = part_chunked(sizes, folder)
-    batch = part_batch(args.shapes, args.skip_default)
-    print(json.dumps(batch), file=sys.stderr)
+    if args.batch_results:  # part 1 of an earlier run (its JSON line), e.g. after changing part 2 only
+        batch = json.loads(Path(args.batch_results).read_text(encoding="utf-8"))
+    else:
+        batch = part_batch(args.shapes, args.skip_default)
+        print(json.dumps(batch), file=sys.stderr)
     Path(args.output).write_text(render(batch, chunked), encoding="utf-8")
     print(f"wrote {args.output}", file=sys.stderr)
 

@@ -67,7 +67,7 @@ _RCOND = 1e-13  # relative singular-value cut-off of the triangular solves
 def _r_factor(a: NDArray, overwrite: bool = False) -> NDArray:
     """The (n, n) triangular factor of A's QR (scipy returns it padded to A's row count)."""
     r = scipy.linalg.qr(a, mode="r", overwrite_a=overwrite, check_finite=False)[0]
-    return r[: min(a.shape)]
+    return r[: min(a.shape)].copy()  # a copy: a view would keep the padded (rows × n) array alive
 
 
 @dataclass(frozen=True)

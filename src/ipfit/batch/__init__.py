@@ -17,7 +17,9 @@ equals the current settings' hash is skipped (status ``skipped``, its row read b
 
 Failures stay with their shape: an error while reading or fitting it, or the death of the
 worker process running it, makes its row ``failed`` with a one-line message; the rest go
-on. KeyboardInterrupt cancels the pending shapes (status ``cancelled``), keeps every
+on. (On an existing cluster Dask retries a shape whose worker died on other workers, up to
+the scheduler's ``distributed.scheduler.allowed-failures``, 3 by default; the embedded
+cluster sets it to 0.) KeyboardInterrupt cancels the pending shapes (status ``cancelled``), keeps every
 finished result and returns (``BatchResult.interrupted``).
 """
 
