@@ -208,7 +208,7 @@ def test_ctrl_c_cancels_pending_shapes_keeps_finished_ones_and_writes_the_summar
     assert finished == {r["name"] for r in rows if r["status"] == "ok"}
     for name in finished:
         load_result(out / f"{name}.json")  # complete, valid files only
-    assert not [p for p in out.iterdir() if p.suffix not in (".json", ".csv")]  # no temporaries left
+    assert not [p for p in out.iterdir() if p.suffix not in (".json", ".csv", ".parquet")]  # no temporaries
 
 
 def _events(total=3):
