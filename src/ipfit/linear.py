@@ -67,7 +67,7 @@ _RCOND = 1e-13  # relative singular-value cut-off of the triangular solves
 def _r_factor(a: NDArray, overwrite: bool = False) -> NDArray:
     """The (n, n) triangular factor of A's QR (scipy returns it padded to A's row count)."""
     r = scipy.linalg.qr(a, mode="r", overwrite_a=overwrite, check_finite=False)[0]
-    return r[: min(a.shape)]
+    return r[: min(a.shape)].copy()  # a copy: a view would keep the padded (rows × n) array alive
 
 
 @dataclass(frozen=True)
@@ -87,6 +87,20 @@ class _Problem:
 
     def design(self, pts: NDArray | None = None) -> NDArray[np.float64]:
         return basis.monomials(self.u if pts is None else pts, self.exponents)
+
+    # What the solvers read of the cloud; a chunked cloud (ipfit.chunked) overrides them.
+    @property
+    def n_points(self) -> int:
+        return len(self.u)
+
+    def blocks(self, make: Callable[..., Iterable[NDArray]], *args) -> Iterable[NDArray]:
+        """The row blocks ``make(problem, *args)`` of the whole cloud (or blocks with the same R)."""
+        return make(self, *args)
+
+    def power_sums(self, top: int) -> NDArray[np.float64]:
+        """γ_t = Σ_i ||u_i||^{2t} for t = 0..top (the ridge penalty's weights)."""
+        sq = np.einsum("ij,ij->i", self.u, self.u)
+        return np.array([np.sum(sq**t) for t in range(top + 1)])
 
 
 def _prepare(points: ArrayLike, normals: ArrayLike | None, degree, *, method: str,
@@ -166,9 +180,13 @@ def _qr_solve(blocks: Iterable[NDArray], d: int, method: str,
 
 
 # -- solvers (one signature) -----------------------------------------------------------
+def _lstsq_blocks(problem: _Problem) -> Iterator[NDArray]:
+    return (problem.design(problem.u[sl]) for sl in _point_chunks(problem, 1))
+
+
 def _solve_lstsq(problem: _Problem) -> tuple[NDArray, dict]:
     # Minimise ||M a|| with ||a|| = 1: the right singular vector of the smallest singular value.
-    r = _r_of_blocks(problem.design(problem.u[sl]) for sl in _point_chunks(problem, 1))
+    r = _r_of_blocks(problem.blocks(_lstsq_blocks))
     _, sv, vt = np.linalg.svd(r)
     info = {"condition_number": float(sv[0] / sv[-1]) if sv[-1] > 0 else float("inf"),
             "smallest_singular_value": float(sv[-1]),
@@ -232,9 +250,9 @@ def _far_field_block(problem: _Problem, n_rows: int, far_row_weight: float, c: f
 
 
 def _solve_3l(problem: _Problem, c: float = DEFAULT_OFFSET, far_row_weight: float = 0.0) -> tuple[NDArray, dict]:
-    far, n_far = _far_field_block(problem, 3 * len(problem.u), far_row_weight, c)
+    far, n_far = _far_field_block(problem, 3 * problem.n_points, far_row_weight, c)
     d = basis.n_coefficients(problem.dim, problem.degree)
-    coef, info = _qr_solve(itertools.chain(_three_level_blocks(problem, c), far), d, "fit_3l")
+    coef, info = _qr_solve(itertools.chain(problem.blocks(_three_level_blocks, c), far), d, "fit_3l")
     info.update(far_row_weight=far_row_weight, far_samples=n_far)
     return coef, info
 
@@ -245,9 +263,12 @@ def ridge_penalty(u: NDArray[np.float64], exps: NDArray[np.int64]) -> NDArray[np
     ``D_α = γ_{|α|} · α! / |α|!`` with ``γ_t = Σ_i ||u_i||^{2t}``: within each total degree
     this is the Bombieri norm, which no rotation changes.
     """
-    total = exps.sum(axis=1)
     sq = np.einsum("ij,ij->i", u, u)
-    gamma = np.array([np.sum(sq**t) for t in range(int(total.max()) + 1)])
+    return _ridge_diagonal(np.array([np.sum(sq**t) for t in range(int(exps.sum(axis=1).max()) + 1)]), exps)
+
+
+def _ridge_diagonal(gamma: NDArray, exps: NDArray[np.int64]) -> NDArray[np.float64]:
+    total = exps.sum(axis=1)
     fact = np.array([factorial(int(k)) for k in range(int(total.max()) + 1)], dtype=float)
     multinomial_inverse = np.prod(fact[exps], axis=1) / fact[total]
     return gamma[total] * multinomial_inverse
@@ -255,28 +276,28 @@ def ridge_penalty(u: NDArray[np.float64], exps: NDArray[np.int64]) -> NDArray[np
 
 def _solve_ridge(problem: _Problem, c: float = DEFAULT_OFFSET, kappa: float = DEFAULT_KAPPA,
                  far_row_weight: float = 0.0) -> tuple[NDArray, dict]:
-    far, n_far = _far_field_block(problem, 3 * len(problem.u), far_row_weight, c)
-    penalty = ridge_penalty(problem.u, problem.exponents)
-    coef, info = _qr_solve(itertools.chain(_three_level_blocks(problem, c), far), len(penalty), "fit_ridge",
+    far, n_far = _far_field_block(problem, 3 * problem.n_points, far_row_weight, c)
+    penalty = _ridge_diagonal(problem.power_sums(problem.degree), problem.exponents)
+    coef, info = _qr_solve(itertools.chain(problem.blocks(_three_level_blocks, c), far), len(penalty), "fit_ridge",
                            extra_rows=np.diag(np.sqrt(kappa * penalty)))
     info.update(kappa=kappa, far_row_weight=far_row_weight, far_samples=n_far)
     return coef, info
 
 
+def _gradient_one_blocks(problem: _Problem, mu: float) -> Iterator[NDArray]:
+    root = np.sqrt(mu)
+    for sl in _point_chunks(problem, 1 + problem.dim):
+        m, dm = basis.monomials_and_gradients(problem.u[sl], problem.degree)
+        yield _augmented(np.concatenate([m, root * dm.reshape(-1, m.shape[1])]),
+                         np.concatenate([np.zeros(len(m)), root * problem.normals[sl].T.ravel()]))
+
+
 def _solve_gradient_one(problem: _Problem, mu: float = DEFAULT_MU, far_row_weight: float = 0.0,
                         c: float = DEFAULT_OFFSET) -> tuple[NDArray, dict]:
-    root = np.sqrt(mu)
-
-    def blocks():
-        for sl in _point_chunks(problem, 1 + problem.dim):
-            m, dm = basis.monomials_and_gradients(problem.u[sl], problem.degree)
-            yield _augmented(np.concatenate([m, root * dm.reshape(-1, m.shape[1])]),
-                             np.concatenate([np.zeros(len(m)), root * problem.normals[sl].T.ravel()]))
-
-    n_rows = len(problem.u) * (1 + problem.dim)
+    n_rows = problem.n_points * (1 + problem.dim)
     far, n_far = _far_field_block(problem, n_rows, far_row_weight, c)
     d = basis.n_coefficients(problem.dim, problem.degree)
-    coef, info = _qr_solve(itertools.chain(blocks(), far), d, "fit_gradient_one")
+    coef, info = _qr_solve(itertools.chain(problem.blocks(_gradient_one_blocks, mu), far), d, "fit_gradient_one")
     info.update(mu=mu, far_row_weight=far_row_weight, far_samples=n_far)
     return coef, info
 
@@ -338,6 +359,12 @@ def _fit(method: str, points, normals, degree, normalization=None, **params) -> 
     spec = LINEAR_METHODS[method]
     problem = _prepare(points, normals, degree, method=f"fit_{method}", needs_normals=spec.needs_normals,
                        normalization=normalization)
+    return _fit_problem(method, problem, params)
+
+
+def _fit_problem(method: str, problem: _Problem, params: dict, **extra_info) -> ImplicitPolynomial:
+    """Solve a prepared problem with checked parameters (also used by :mod:`ipfit.chunked`)."""
+    spec = LINEAR_METHODS[method]
     try:
         with np.errstate(all="ignore"):
             coef, info = spec.solve(problem, **{**dict(spec.defaults), **params})
@@ -347,7 +374,8 @@ def _fit(method: str, points, normals, degree, normalization=None, **params) -> 
     if not np.isfinite(coef).all() or not np.any(coef):
         raise error("points", "data that determine a polynomial", f"a degenerate {method} system",
                     "Check the points, the normals and the degree.")
-    poly = ImplicitPolynomial(problem.exponents, coef, problem.normalization, method=method, info=info)
+    poly = ImplicitPolynomial(problem.exponents, coef, problem.normalization, method=method,
+                              info={**info, **extra_info})
     if problem.normals is not None:
         # The sign only needs the normals' overall agreement: every k-th point of a big cloud
         # (all points up to _SIGN_POINTS) keeps the gradients' memory bounded.

@@ -23,7 +23,8 @@ if TYPE_CHECKING:
     import argparse
     from typing import Sequence
 
-SUBCOMMANDS = ("fit", "normals", "mesh", "plot", "view", "score", "export", "render", "datasets", "reproduce")
+SUBCOMMANDS = ("fit", "batch", "normals", "mesh", "plot", "view", "score", "export", "render", "datasets",
+               "reproduce")
 
 
 def build_parser() -> argparse.ArgumentParser:

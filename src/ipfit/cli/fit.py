@@ -44,13 +44,27 @@ is written.
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("input", metavar="INPUT", help="point file or bundled dataset name")
+    parser.add_argument("-o", "--output", metavar="PREFIX",
+                        help="output path prefix (default: the input's name in the current folder)")
+    add_fit_options(parser)
+    parser.add_argument("--normals", choices=("file", "estimate"), default=None,
+                        help="use the file's normals or estimate them (default: the file's when present)")
+    parser.add_argument("--no-picture", action="store_true", help="skip the PNG picture")
+    parser.add_argument("--no-zero-set", action="store_true", help="skip the mesh / curve export")
+    parser.add_argument("--html", action="store_true",
+                        help="also write PREFIX.html: an interactive viewer of every degree (works offline)")
+    parser.add_argument("-q", "--quiet", action="store_true", help="no progress output")
+    parser.add_argument("--max-points", type=positive_int, metavar="N",
+                        help="keep a random subset of N points of a larger file (fixed seed; for big scans)")
+
+
+def add_fit_options(parser: argparse.ArgumentParser) -> None:
+    """The fit options shared by ``ipfit fit`` and ``ipfit batch`` (read back by :func:`search_settings`)."""
     from ..adaptive import fixed_degree_methods
     from ..options import (DEFAULT_DELTA, DEFAULT_EPSILON, DEFAULT_ITERATIONS, DEFAULT_METHOD, PAPER, PAPER_METHOD,
                            PAPER_RULE, RECOMMENDED)
 
-    parser.add_argument("input", metavar="INPUT", help="point file or bundled dataset name")
-    parser.add_argument("-o", "--output", metavar="PREFIX",
-                        help="output path prefix (default: the input's name in the current folder)")
     parser.add_argument("--degree", default="auto", metavar="auto|N",
                         help="'auto' for the adaptive degree (default), or a fixed even degree N")
     parser.add_argument("--max-degree", type=positive_int, metavar="G",
@@ -78,15 +92,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--population", type=positive_int,
                         help="metaheuristic population (default 4 × the number of coefficients)")
     parser.add_argument("--seed", type=nonnegative_int, default=0, help="random seed for a reproducible run (default 0)")
-    parser.add_argument("--normals", choices=("file", "estimate"), default=None,
-                        help="use the file's normals or estimate them (default: the file's when present)")
-    parser.add_argument("--no-picture", action="store_true", help="skip the PNG picture")
-    parser.add_argument("--no-zero-set", action="store_true", help="skip the mesh / curve export")
-    parser.add_argument("--html", action="store_true",
-                        help="also write PREFIX.html: an interactive viewer of every degree (works offline)")
-    parser.add_argument("-q", "--quiet", action="store_true", help="no progress output")
-    parser.add_argument("--max-points", type=positive_int, metavar="N",
-                        help="keep a random subset of N points of a larger file (fixed seed; for big scans)")
 
 
 def search_settings(args: argparse.Namespace):

@@ -1,0 +1,109 @@
+"""``ipfit batch INPUT... -o OUTDIR``: fit many shapes on Dask (embedded cluster or --scheduler)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+
+from ._common import cli_names, positive_int
+from .fit import _OPTION_NAMES, _parse_degree, add_fit_options, search_settings
+
+NAME = "batch"
+HELP = "fit many shapes in parallel on Dask (files, folders, globs, bundled names)"
+DESCRIPTION = """\
+Fit every shape of INPUT... (point files, folders of point files, quoted globs, bundled dataset
+names, or generated:N[:SEED] for N shapes of ipfit's generated collection) with the same fit
+options as `ipfit fit`, in parallel on Dask:
+
+  embedded (default)     a local cluster of --workers processes, one BLAS thread each,
+                         started and stopped with the command
+  --scheduler ADDRESS    an existing cluster (tcp://host:8786); ipfit must be importable there
+
+OUTDIR receives NAME.json per shape (the result JSON of `ipfit fit`) and summary.csv (and
+summary.parquet with pyarrow): one row per shape with its points, selected degree, measures,
+F-score, spurious components, seconds, status (ok, skipped, failed, cancelled) and error.
+
+Shape NAME is fitted with a random generator made from --seed and NAME, so it gets the same
+result alone (ipfit.batch.shape_rng) or in any batch, on any worker. A shape whose result in
+OUTDIR has the same settings is skipped: re-running after a crash or Ctrl-C finishes the rest.
+A shape that cannot be read or fitted, or whose worker dies, is a failed row; the rest go on.
+Ctrl-C cancels the pending shapes, keeps the finished results and writes the summary.
+"""
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("inputs", nargs="+", metavar="INPUT", help="point files, folders, globs, bundled names, "
+                        "generated:N[:SEED]")
+    parser.add_argument("-o", "--output", required=True, metavar="OUTDIR", help="folder for the results")
+    where = parser.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=positive_int, default=None, metavar="N",
+                       help="worker processes of the embedded cluster (default 2)")
+    where.add_argument("--scheduler", metavar="ADDRESS", help="use the Dask scheduler at ADDRESS instead")
+    add_fit_options(parser)
+    parser.add_argument("-q", "--quiet", action="store_true", help="no progress output")
+
+
+class BatchProgress:
+    """Shapes done / failed / running and the ETA: a rich bar on a TTY, a line per shape when piped."""
+
+    def __init__(self, mode: str, stream=None) -> None:
+        self.mode, self.stream = mode, sys.stderr if stream is None else stream
+        self._bar = self._task = None
+
+    def __call__(self, event: dict) -> None:
+        if self.mode == "off":
+            return
+        finished = event["done"] + event["failed"] + event["skipped"]
+        eta = "?" if event["eta"] is None else f"{event['eta']:.0f} s"
+        counts = f"{event['done']} done, {event['failed']} failed, {event['running']} running, ETA {eta}"
+        if self.mode == "bar":
+            if self._bar is None:
+                from rich.console import Console
+                from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+                self._bar = Progress(TextColumn("batch"), BarColumn(), MofNCompleteColumn(),
+                                     TextColumn("{task.fields[counts]}"), TimeElapsedColumn(),
+                                     console=Console(file=self.stream), transient=True)
+                self._bar.start()
+                self._task = self._bar.add_task("batch", total=event["total"], counts=counts)
+            self._bar.update(self._task, completed=finished, counts=counts)
+            if event["status"] == "failed":
+                self._bar.console.print(f"{event['name']}: failed: {event['error']}")
+            return
+        error = f": {event['error']}" if event["status"] == "failed" else ""
+        self.stream.write(f"[{finished}/{event['total']}] {event['name']}: {event['status']}{error}; {counts}\n")
+        self.stream.flush()
+
+    def close(self) -> None:
+        if self._bar is not None:
+            self._bar.stop()
+            self._bar = None
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..batch import fit_many
+    from ._progress import progress_mode
+
+    degree = _parse_degree(args.degree, 0)
+    method, options, rule = search_settings(args)
+    shown = BatchProgress(progress_mode(args.quiet))
+    start = time.perf_counter()
+    try:
+        with cli_names({**_OPTION_NAMES, "inputs": "INPUT", "workers": "--workers"}):
+            batch = fit_many(args.inputs, workers=args.workers, scheduler=args.scheduler, output=args.output,
+                             method=method, options=options, rule=rule, epsilon=args.epsilon, delta=args.delta,
+                             min_degree=degree or 2, max_degree=degree or args.max_degree, seed=args.seed,
+                             progress=shown)
+    finally:
+        shown.close()
+    counts = batch.counts()
+    if not args.quiet:
+        summary = ", ".join(f"{n} {status}" for status, n in sorted(counts.items()))
+        print(f"{len(batch.rows)} shapes: {summary} in {time.perf_counter() - start:.1f} s; "
+              f"wrote {args.output}/summary.csv")
+    if batch.interrupted:
+        print(f"ipfit batch: interrupted; kept {counts.get('ok', 0)} finished results in {args.output}, "
+              "summary written; run the same command again to finish the rest", file=sys.stderr)
+        return 130
+    return 0  # failed shapes are rows of the summary, not a failure of the command
