@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import re
 import json
 import os
 import signal
@@ -250,3 +251,16 @@ def test_an_unreachable_scheduler_is_one_line(tmp_path, capsys):
                  "--method", "3l"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--scheduler: cannot connect to tcp://127.0.0.1:9" in err
+
+
+def test_cli_batch_html_writes_an_index_of_viewers_with_thumbnails(client, tmp_path):
+    shapes = _write_shapes(tmp_path / "in", 2)
+    out = tmp_path / "out"
+    assert main(["batch", str(tmp_path / "in" / "*.xyz"), "-o", str(out), "--scheduler", client.scheduler.address,
+                 "--method", "3l", "--max-degree", "2", "--html", "-q"]) == 0
+    index = (out / "index.html").read_text(encoding="utf-8")
+    for shape in shapes:
+        assert f'<a href="{shape.name}.html"><img src="{shape.name}.png"' in index
+        page = (out / f"{shape.name}.html").read_text(encoding="utf-8")
+        assert "plotly" in page.lower() and not re.search(r"<script[^>]+src=[\"']https?:", page)
+        assert (out / f"{shape.name}.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

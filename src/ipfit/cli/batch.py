@@ -5,8 +5,9 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from pathlib import Path
 
-from ._common import cli_names, positive_int
+from ._common import cli_names, load_input, positive_int
 from .fit import _OPTION_NAMES, _parse_degree, add_fit_options, search_settings
 
 NAME = "batch"
@@ -41,6 +42,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                        help="worker processes of the embedded cluster (default 2)")
     where.add_argument("--scheduler", metavar="ADDRESS", help="use the Dask scheduler at ADDRESS instead")
     add_fit_options(parser)
+    parser.add_argument("--html", action="store_true",
+                        help="also write NAME.html (the viewer) and NAME.png (a thumbnail) per shape, and "
+                        "index.html linking them all")
     parser.add_argument("-q", "--quiet", action="store_true", help="no progress output")
 
 
@@ -81,6 +85,35 @@ class BatchProgress:
             self._bar = None
 
 
+def write_viewers(folder: Path, batch) -> Path:
+    """NAME.html and a NAME.png thumbnail per fitted shape, and index.html linking them."""
+    from .._atomic import write_text_atomic
+    from ..exceptions import IpfitError
+    from ..plotting import plot_result
+    from ..viewer import index_page, write_html
+
+    entries = []
+    for row in batch.rows:
+        result = batch.results.get(row["name"])
+        if row["status"] not in ("ok", "skipped") or result is None:
+            continue
+        points = None
+        source = (result.get("input") or {}).get("path") or row.get("input")
+        try:
+            points = load_input(str(source)).points if source else None
+        except IpfitError:  # generated shapes and moved files: the viewer frames the result without its points
+            points = None
+        name = row["name"]
+        write_html(result, points, folder / f"{name}.html")
+        plot_result(result, points=points, path=folder / f"{name}.png", dpi=40)
+        f_score = row.get("f_score")
+        caption = f"degree {row.get('selected_degree')}" + (f", F = {f_score:.3f}" if f_score is not None else "")
+        entries.append((name, f"{name}.html", f"{name}.png", caption))
+    index = folder / "index.html"
+    write_text_atomic(index, index_page(f"ipfit batch: {len(entries)} shapes", entries))
+    return index
+
+
 def run(args: argparse.Namespace) -> int:
     from ..batch import fit_many
     from ._progress import progress_mode
@@ -98,6 +131,8 @@ def run(args: argparse.Namespace) -> int:
     finally:
         shown.close()
     counts = batch.counts()
+    if args.html:
+        write_viewers(Path(args.output), batch)
     if not args.quiet:
         summary = ", ".join(f"{n} {status}" for status, n in sorted(counts.items()))
         print(f"{len(batch.rows)} shapes: {summary} in {time.perf_counter() - start:.1f} s; "

@@ -16,7 +16,7 @@ the result, not from the decimated meshes.
 optional dependency (``pip install 'ipfit[viewer]'``), imported only here.
 
 Modules: ``figure`` (the plotly figure), ``geometry`` (decimation, spurious components),
-``pages`` (the HTML around figures: the place for an index page linking several viewers).
+``pages`` (the HTML around figures, and the index page linking several viewers).
 
 >>> from ipfit.datasets import synthetic
 >>> shape = synthetic.circle(64)
@@ -30,7 +30,7 @@ from __future__ import annotations
 from .figure import (CURRENT_ROW, CURVE_COLOR, MAX_FACES, MAX_POINTS, REASONS, SPURIOUS_COLOR, SURFACE_COLOR,
                      result_figure)
 from .geometry import decimate, spurious_flags
-from .pages import page, to_html, write_html
+from .pages import index_page, page, to_html, write_html
 
-__all__ = ["result_figure", "to_html", "write_html", "decimate", "spurious_flags", "page", "MAX_FACES",
+__all__ = ["result_figure", "to_html", "write_html", "index_page", "decimate", "spurious_flags", "page", "MAX_FACES",
            "MAX_POINTS", "REASONS", "SPURIOUS_COLOR", "SURFACE_COLOR", "CURVE_COLOR", "CURRENT_ROW"]

@@ -1,4 +1,4 @@
-"""HTML pages: the standalone page around a figure (and, later, an index of several)."""
+"""HTML pages: the standalone page around a figure, and an index page of several."""
 
 from __future__ import annotations
 
@@ -11,11 +11,11 @@ from numpy.typing import ArrayLike
 from .._validation import error
 from .figure import result_figure
 
-__all__ = ["page", "to_html", "write_html"]
+__all__ = ["page", "to_html", "write_html", "index_page"]
 
 
 def page(title: str, body: str) -> str:
-    """A minimal standalone HTML page around ``body`` (the viewer's, and a future index page's)."""
+    """A minimal standalone HTML page around ``body`` (the viewer's and the index page's)."""
     return ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
             f"<title>{html.escape(title)}</title>"
             "<style>html,body{margin:0;height:100%;font-family:sans-serif}</style></head>\n"
@@ -48,3 +48,22 @@ def write_html(result, points: ArrayLike | None, path: str | os.PathLike, **kwar
     if not folder.is_dir():
         raise error("path", "a file in an existing folder", f"{str(path)!r}", f"Create {folder} first.")
     write_text_atomic(path, to_html(result, points, **kwargs))
+
+
+def index_page(title: str, entries) -> str:
+    """An index of viewers: one card per ``(name, page, thumbnail, caption)``, each thumbnail (a
+    relative image path, or None) linking to its viewer page (relative path).
+
+    >>> html_text = index_page("shapes", [("boot", "boot.html", "boot.png", "degree 4")])
+    >>> '<a href="boot.html"><img src="boot.png"' in html_text
+    True
+    """
+    cards = []
+    for name, target, thumbnail, caption in entries:
+        image = (f'<img src="{html.escape(thumbnail)}" alt="{html.escape(name)}" loading="lazy">'
+                 if thumbnail else "")
+        cards.append(f'<figure><a href="{html.escape(target)}">{image}</a><figcaption><a href="{html.escape(target)}">'
+                     f"{html.escape(name)}</a><br>{html.escape(caption)}</figcaption></figure>")
+    style = ("<style>main{display:flex;flex-wrap:wrap;gap:12px;padding:12px}figure{margin:0;width:260px}"
+             "img{width:260px;border:1px solid #ccc}figcaption{font-size:13px}</style>")
+    return page(title, f"{style}<h2 style='padding:0 12px'>{html.escape(title)}</h2><main>{''.join(cards)}</main>")
