@@ -133,8 +133,8 @@ class SearchOptions:
         :func:`ipfit.fit_adaptive` starts each degree also from the previous degree's solution
         (exactly representable, with zero higher-degree coefficients). Off by default: measured
         on the bundled contours it traps the search near the lower degree's shape (airplane:
-        degree 6 selected with F = 0.88 instead of degree 10 with F = 0.99; see
-        ``docs/performance.md``).
+        degree 6 selected with F = 0.88 instead of degree 10 with F = 0.99;
+        ``benchmarks/bench_warm_start.py``).
     cleanup_weights : tuple of float, default (1.0, 10.0)
         When a degree's zero set has spurious components, the geometric rule of
         :func:`ipfit.fit_adaptive` polishes that degree's fit again with a far-field term that
