@@ -330,7 +330,7 @@ def api_calls(tally: Tally, work: Path) -> None:
         "fit_adaptive(pts, nrm, progress=5)": lambda: ipfit.fit_adaptive(pts, nrm, method="3l", progress=5),
         "fit_adaptive(pts, nrm, method='x')": lambda: ipfit.fit_adaptive(pts, nrm, method="x"),
         "fit_adaptive(pts, nrm, rng=-1)": lambda: ipfit.fit_adaptive(pts, nrm, method="3l", rng=-1),
-        "fit_lstsq(pts, 2.5)": lambda: ipfit.fit_lstsq(pts, 2.5),
+        "fit_lstsq(pts, degree=2.5)": lambda: ipfit.fit_lstsq(pts, degree=2.5),
         "extract_zero_set(poly, resolution=0)": lambda: ipfit.extract_zero_set(poly, resolution=0),
         "extract_zero_set(poly, bounds='x')": lambda: ipfit.extract_zero_set(poly, bounds="x"),
         "extract_zero_set('x')": lambda: ipfit.extract_zero_set("x"),

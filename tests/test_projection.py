@@ -13,7 +13,7 @@ from ipfit.projection import distance_summary, project
 def test_circle_fit_distances_are_analytic(rng):
     centre, radius = np.array([0.3, -0.2]), 1.7
     shape = circle(100, radius=radius, center=centre)
-    poly = ipfit.fit_lstsq(shape.points, 2)  # exact data: the fit is the circle up to rounding
+    poly = ipfit.fit_lstsq(shape.points, degree=2)  # exact data: the fit is the circle up to rounding
     queries = centre + rng.uniform(-4, 4, (300, 2))
     far_from_centre = np.linalg.norm(queries - centre, axis=1) > 0.05
     queries = queries[far_from_centre]
@@ -27,7 +27,7 @@ def test_circle_fit_distances_are_analytic(rng):
 def test_sphere_fit_distances_are_analytic(rng):
     centre, radius = np.array([1.0, 2.0, -0.5]), 0.8
     shape = sphere(300, radius=radius, center=centre)
-    poly = ipfit.fit_taubin(shape.points, 2)
+    poly = ipfit.fit_taubin(shape.points, degree=2)
     queries = centre + rng.uniform(-3, 3, (300, 3))
     queries = queries[np.linalg.norm(queries - centre, axis=1) > 0.05]
     proj = project(queries, poly)
