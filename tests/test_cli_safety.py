@@ -391,7 +391,7 @@ def test_signal_before_the_first_degree_writes_nothing(tmp_path, heart_csv, sig)
     proc, master = _start(["fit", str(heart_csv), "-o", "r", "--method", "de", "--iterations", "100000"],
                           tmp_path, tty=True)
     buffer: list[str] = []
-    assert _wait_for(lambda: "iteration" in _read_tty(master, buffer), timeout=240)
+    assert _wait_for(lambda: "objective" in _read_tty(master, buffer), timeout=240)  # the DE stage is running
     proc.send_signal(sig)
     code, _, err = _finish(proc, master, buffer)
     assert code == 128 + sig
