@@ -235,6 +235,6 @@ def test_a_million_point_3l_fit_stays_in_bounded_memory():
     poly = ipfit.fit_3l(v * [2.0, 1.0, 1.0], v / [2.0, 1.0, 1.0], 6)
     peak = tracemalloc.get_traced_memory()[1]
     tracemalloc.stop()
-    full = 3 * len(v) * poly.n_coefficients * 8  # the 3N × d design matrix alone
-    assert peak < 0.3 * full
+    full = 3 * len(v) * poly.n_coefficients * 8  # the 3N × d design matrix alone (2 GB)
+    assert peak < 0.45 * full  # a few row blocks of 2^17 rows (and their QR copies), never the whole matrix
     assert np.max(np.abs(poly(v[:1000] * [2.0, 1.0, 1.0]))) < 1e-3

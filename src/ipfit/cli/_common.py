@@ -112,8 +112,23 @@ class _SignalState:
     received: int | None = None  # the last signal of this run
 
 
+def _inside_native_callback(frame) -> bool:
+    """Whether Python code called back from native code is running (numba's JIT compiler calls
+    llvmlite's Python callbacks through ctypes): an exception raised there is printed as
+    "Exception ignored" and lost."""
+    while frame is not None:
+        if "llvmlite" in frame.f_code.co_filename:
+            return True
+        frame = frame.f_back
+    return False
+
+
 def _on_signal(signum: int, frame) -> None:
     _SignalState.received = signum
+    if _inside_native_callback(frame):
+        # Deliver it again in a moment, once the callback has returned.
+        threading.Timer(0.05, os.kill, (os.getpid(), signum)).start()
+        return
     if _SignalState.defer and _SignalState.pending is None:
         _SignalState.pending = signum
         doing = _SignalState.defer[-1]
