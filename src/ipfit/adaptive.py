@@ -285,21 +285,8 @@ def fit_adaptive(points: ArrayLike, normals: ArrayLike | None = None, *, method:
     """
     pts = as_points(points)
     dim = pts.shape[1]
-    if not callable(method):
-        method = check_choice(method, "method", fixed_degree_methods())
-    if method in REFINE_METHODS:
-        options = RECOMMENDED if options is None else options
-        if not isinstance(options, SearchOptions):
-            raise error("options", "a SearchOptions (e.g. ipfit.RECOMMENDED or ipfit.PAPER)", type(options).__name__)
-        options.for_method(method)
-    elif options is not None:
-        name = method if isinstance(method, str) else "a callable"
-        raise error("options", f"None for method {name!r}, which has no search", "SearchOptions",
-                    "Drop the search options (or the far-field term weight) or pick a refinement method.")
-    rule = check_choice(rule, "rule", RULES)
-    epsilon = check_real(epsilon, "epsilon")
-    delta = check_nonnegative(delta, "delta")
-    min_degree = check_int(min_degree, "min_degree", minimum=1)
+    method, options, rule, epsilon, delta, min_degree = check_settings(method, options, rule, epsilon, delta,
+                                                                       min_degree, max_degree)
     generator = check_rng(rng)
     progress = _check_progress(progress)
     if ordered_contour is not None and not isinstance(ordered_contour, (bool, np.bool_)):
@@ -347,6 +334,29 @@ def fit_adaptive(points: ArrayLike, normals: ArrayLike | None = None, *, method:
         selected_degree=chosen.degree, degrees=tuple(results), reason=reason, epsilon=epsilon, delta=delta,
         method=name, rule=rule, seconds=time.perf_counter() - start,
         options=options if method in REFINE_METHODS else None)
+
+
+def check_settings(method, options, rule, epsilon, delta, min_degree, max_degree=None):
+    """The data-independent arguments of :func:`fit_adaptive`, checked (the one place: batches
+    check them once before sending shapes to workers). Returns them normalised."""
+    if not callable(method):
+        method = check_choice(method, "method", fixed_degree_methods())
+    if method in REFINE_METHODS:
+        options = RECOMMENDED if options is None else options
+        if not isinstance(options, SearchOptions):
+            raise error("options", "a SearchOptions (e.g. ipfit.RECOMMENDED or ipfit.PAPER)", type(options).__name__)
+        options.for_method(method)
+    elif options is not None:
+        name = method if isinstance(method, str) else "a callable"
+        raise error("options", f"None for method {name!r}, which has no search", "SearchOptions",
+                    "Drop the search options (or the far-field term weight) or pick a refinement method.")
+    rule = check_choice(rule, "rule", RULES)
+    epsilon = check_real(epsilon, "epsilon")
+    delta = check_nonnegative(delta, "delta")
+    min_degree = check_int(min_degree, "min_degree", minimum=1)
+    if max_degree is not None:
+        check_int(max_degree, "max_degree", minimum=min_degree)
+    return method, options, rule, epsilon, delta, min_degree
 
 
 def _top_degree(n_points: int, dim: int, min_degree: int, max_degree: int | None) -> int:

@@ -146,28 +146,10 @@ def fit_many(inputs, *, client=None, workers: int | None = None, scheduler: str 
 
 def _check_settings(settings: FitSettings) -> None:
     """Bad settings fail once, here, not once per shape on the workers."""
-    from .. import basis
-    from ..adaptive import fit_adaptive
-    from ..datasets.synthetic import circle
+    from ..adaptive import check_settings
 
-    shape = circle(basis.n_coefficients(2, max(2, check_int(settings.min_degree, "min_degree", minimum=1))) + 2)
-    try:
-        fit_adaptive(shape.points, shape.normals, method="lstsq" if callable(settings.method) else settings.method,
-                     options=settings.options if not callable(settings.method) else None,
-                     min_degree=settings.min_degree, max_degree=None, epsilon=settings.epsilon,
-                     delta=settings.delta, rule=settings.rule, rng=0, progress=_stop_at_once)
-    except _Checked:
-        pass
-    if settings.max_degree is not None:
-        check_int(settings.max_degree, "max_degree", minimum=settings.min_degree)
-
-
-class _Checked(Exception):
-    pass
-
-
-def _stop_at_once(event: dict) -> None:
-    raise _Checked
+    check_settings(settings.method, settings.options, settings.rule, settings.epsilon, settings.delta,
+                   settings.min_degree, settings.max_degree)
 
 
 def _run(active, todo, settings, folder, rows, results, progress, total, start) -> bool:
