@@ -19,7 +19,7 @@ import math
 import os
 from dataclasses import dataclass
 from functools import cached_property
-from typing import NamedTuple, Sequence
+from typing import TYPE_CHECKING, NamedTuple, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -27,6 +27,9 @@ from numpy.typing import ArrayLike, NDArray
 from . import basis
 from ._validation import as_points, check_int, check_nonnegative, error
 from .polynomial import ImplicitPolynomial
+
+if TYPE_CHECKING:
+    from .trim import Trim
 
 __all__ = [
     "ZeroSet",
@@ -259,6 +262,8 @@ class ZeroSet:
     reaches_boundary : whether f changes sign (or vanishes) on the box's boundary, i.e.
         the zero set leaves the box.
     polynomial : the polynomial it was extracted from, if known.
+    trim : a :class:`ipfit.trim.Trim` record when this is a trimmed zero set
+        (:meth:`trimmed`), else None.
     """
 
     dim: int
@@ -270,6 +275,7 @@ class ZeroSet:
     faces: NDArray[np.int64] | None = None
     reaches_boundary: bool = False
     polynomial: ImplicitPolynomial | None = None
+    trim: Trim | None = None  # set by trimmed(): what was removed
 
     # -- summary ------------------------------------------------------------------------
     @property
@@ -285,8 +291,8 @@ class ZeroSet:
 
     @property
     def closed(self) -> bool:
-        """True when the zero set is non-empty and closes inside the box."""
-        return not self.is_empty and not self.reaches_boundary
+        """True when the zero set is non-empty, closes inside the box and was not trimmed open."""
+        return not self.is_empty and not self.reaches_boundary and not (self.trim and self.trim.removed_faces)
 
     @property
     def curve_closed(self) -> tuple[bool, ...]:
@@ -364,6 +370,13 @@ class ZeroSet:
             starts, ends, labels = self.segments()
             return sample_segments(starts, ends, spacing, labels, max_samples)
         return sample_triangles(self.vertices, self.faces, spacing, self.component_labels, max_samples)
+
+    def trimmed(self, points: ArrayLike, distance: float | None = None, *, faces: ArrayLike | None = None) -> ZeroSet:
+        """The parts within ``distance`` of the data ``points`` (and their ``faces``), as a new
+        zero set whose ``trim`` records what went; see :func:`ipfit.trim.trim_zero_set`."""
+        from .trim import trim_zero_set
+
+        return trim_zero_set(self, points, distance, faces=faces)
 
     # -- export -------------------------------------------------------------------------
     def to_trimesh(self):

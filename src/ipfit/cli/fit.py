@@ -12,6 +12,7 @@ import numpy as np
 from ._common import (Outputs, beside, cli_names, default_prefix, finite_float, fit_prefix, load_input,
                       nonnegative_float, nonnegative_int, positive_int, stop_at_iterations)
 from ._progress import Progress, progress_mode
+from .mesh import add_trim_argument, trim_for_export
 
 # Library parameter -> the option the user typed, for error messages.
 _OPTION_NAMES = {"max_degree": "--max-degree", "min_degree": "--degree", "rng": "--seed", "epsilon": "--epsilon",
@@ -37,6 +38,10 @@ Outputs, all written together or not at all (-o PREFIX, or -o PREFIX.json):
   PREFIX.ply    the zero-set mesh (3D)   |   PREFIX.svg + PREFIX.csv  the zero-set curves (2D)
   PREFIX.html   with --html: an interactive viewer of every degree (works offline)
 
+--trim [DIST] exports only the part of the zero set within DIST of the data (an open scan stays
+open; without DIST: 5 x the median point spacing, or 2% of the box diagonal if larger); the
+polynomial, the JSON and the picture are those of the whole fit, and one line says what went.
+
 Odd degrees are accepted with a warning: their zero set is never bounded. Ctrl-C (or SIGTERM)
 stops cleanly: the outputs keep every degree already finished; before the first one, nothing
 is written.
@@ -52,6 +57,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="use the file's normals or estimate them (default: the file's when present)")
     parser.add_argument("--no-picture", action="store_true", help="skip the PNG picture")
     parser.add_argument("--no-zero-set", action="store_true", help="skip the mesh / curve export")
+    add_trim_argument(parser)
     parser.add_argument("--html", action="store_true",
                         help="also write PREFIX.html: an interactive viewer of every degree (works offline)")
     parser.add_argument("-q", "--quiet", action="store_true", help="no progress output")
@@ -154,6 +160,8 @@ def run(args: argparse.Namespace) -> int:
                                 f"points, the input has {len(points)}. Lower the degree.")
     if args.normals == "file" and normals is None:
         raise InvalidInputError(f"--normals file: {args.input} has no normals. Use --normals estimate.")
+    if args.trim is not None and args.no_zero_set:
+        raise InvalidInputError("--trim: it trims the exported zero set, which --no-zero-set skips. Drop one of them.")
     prefix, outputs = _plan_outputs(args, data.label, dim)
     source = "file"
     if normals is None or args.normals == "estimate":
@@ -179,7 +187,7 @@ def run(args: argparse.Namespace) -> int:
     if Path(args.input).exists():  # found again by ipfit plot/mesh/score from any folder
         payload["input"]["path"] = str(Path(args.input).resolve())
     payload["bounds"] = np.column_stack([points.min(axis=0), points.max(axis=0)]).tolist()
-    _write_outputs(outputs, prefix, payload, result, points, normals, data, args)
+    trimmed = _write_outputs(outputs, prefix, payload, result, points, normals, data, args)
     if not args.quiet:
         table = ", ".join(f"{d.degree}: {d.smoothness:.4f}" for d in result.degrees)
         for entry in result.degrees:
@@ -191,6 +199,8 @@ def run(args: argparse.Namespace) -> int:
             print(f"selected {result.message}; smoothness by degree {table}")
         print(f"wrote {prefix}.json" + ("" if args.no_picture else f", {prefix}.png")
               + ("" if args.no_zero_set else (f", {prefix}.ply" if dim == 3 else f", {prefix}.svg, {prefix}.csv")))
+        if trimmed:
+            print(trimmed)
     return 130 if result.reason == "interrupted" else 0
 
 
@@ -204,15 +214,18 @@ def _plan_outputs(args: argparse.Namespace, label: str, dim: int) -> tuple[Path,
     return prefix, Outputs([beside(prefix, s) for s in suffixes], inputs=inputs, make_folders=True)
 
 
-def _write_outputs(outputs: Outputs, prefix: Path, payload: dict, result, points, normals, data, args) -> None:
+def _write_outputs(outputs: Outputs, prefix: Path, payload: dict, result, points, normals, data, args) -> str | None:
+    """Write every output; returns the --trim summary line, if any."""
     from ..export import save_zero_set
     from ..zeroset import extract_zero_set
 
+    summary = None
     with outputs.writing() as stage:
         zero_set = None
-        if not (args.no_zero_set and args.no_picture):
-            zero_set = extract_zero_set(result.polynomial, points=points)
         if not args.no_zero_set:
+            zero_set = extract_zero_set(result.polynomial, points=points)
+            if args.trim is not None:
+                zero_set, summary = trim_for_export(zero_set, points, data.faces, args.trim)
             for suffix in [".ply"] if points.shape[1] == 3 else [".svg", ".csv"]:
                 save_zero_set(zero_set, stage(beside(prefix, suffix)))
         if not args.no_picture:
@@ -224,3 +237,4 @@ def _write_outputs(outputs: Outputs, prefix: Path, payload: dict, result, points
 
             write_html(payload, points, stage(beside(prefix, ".html")), faces=data.faces, normals=normals)
         stage(beside(prefix, ".json")).write_text(json.dumps(payload, indent=1), encoding="utf-8")
+    return summary

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 
@@ -17,7 +18,15 @@ bounding box plus a margin, by marching cubes (3D) or marching squares (2D), and
 
 The box is that of --points DATA when given, else the result's "bounds", else that of the data
 the result records ("input"), else one around the result's normalisation.
+
+--trim [DIST] writes only the part of the zero set within DIST of the data (--points DATA, else
+the data the result records), e.g. to export an open scan open: faces with a vertex farther than
+DIST go. Without DIST: 5 x the data's median point spacing, or 2% of its box diagonal if larger.
 """
+
+TRIM_DEFAULT = "auto"
+TRIM_HELP = ("export only the zero set within DIST of the data (data units; default, or 'auto': 5 x the median "
+             "point spacing, at least 2%% of the box diagonal); the polynomial is unchanged")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -31,6 +40,37 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="margin around the data's box, as a fraction of its longest side (default 0.25)")
     parser.add_argument("--resolution", type=positive_int, metavar="N",
                         help="grid nodes along the box's longest side (default 128 in 3D, 512 in 2D)")
+    add_trim_argument(parser)
+
+
+def trim_distance(text: str):
+    """``--trim`` value: a distance > 0, or 'auto' for the default."""
+    if text == TRIM_DEFAULT:
+        return text
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a distance > 0 in the data's units or 'auto', got {text!r} "
+                                         "(a bare --trim goes after the input, or write --trim=DIST)") from None
+    if not (value > 0 and math.isfinite(value)):
+        raise argparse.ArgumentTypeError(f"expected a finite distance > 0 in the data's units, got {text!r}")
+    return value
+
+
+def add_trim_argument(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--trim", nargs="?", const=TRIM_DEFAULT, type=trim_distance, metavar="DIST", help=TRIM_HELP)
+
+
+def trim_for_export(zero_set, points, faces, trim):
+    """The zero set trimmed to the data as ``--trim`` asks (``trim`` is its value), with its
+    one-line summary; an error when nothing is left to write."""
+    from ..exceptions import InvalidInputError
+
+    out = zero_set.trimmed(points, None if trim == TRIM_DEFAULT else trim, faces=faces)
+    if out.is_empty and not zero_set.is_empty:
+        raise InvalidInputError(f"--trim: no part of the zero set lies within {out.trim.distance:.4g} of the data, "
+                                "so nothing would be written. Pass a larger distance, or check the fit.")
+    return out, out.trim.describe()
 
 
 def warn(command: str, message: str) -> None:
@@ -111,6 +151,18 @@ def load_points(spec: str | None, view, command: str, *, required: bool = False,
     return data.points, faces
 
 
+def _trim_data(view, spec: str | None):
+    """(points, faces) to trim to: --points DATA, else the data the result records."""
+    from ..exceptions import InvalidInputError
+
+    if spec is not None:
+        return load_points(spec, view, NAME)
+    data, why = _recorded_input(view)
+    if data is None:
+        raise InvalidInputError(f"--trim: it needs the data to trim to, and {why}. Pass the data with --points DATA.")
+    return data.points, data.faces if data.faces is not None and len(data.faces) else None
+
+
 def result_box(view, spec: str | None, margin: float, command: str):
     """The box to extract or draw a result's zero set in: that of --points DATA when given, else
     the result's "bounds", else that of the data it records, else one around its normalisation."""
@@ -128,18 +180,28 @@ def result_box(view, spec: str | None, margin: float, command: str):
 
 def run(args: argparse.Namespace) -> int:
     from ..results import result_view
-    from ..zeroset import extract_zero_set
+    from ..zeroset import data_bounds, extract_zero_set
 
     view = result_view(args.result)
     check_output_suffix(args.output, view.dim)
     outputs = Outputs([args.output], inputs=[args.result, args.points, *recorded_sources(view.data)])
     poly = view.fit(args.degree, name="--degree")
-    box = result_box(view, args.points, args.margin, NAME)
-    zero_set = extract_zero_set(poly, bounds=box, resolution=args.resolution)
+    summary = None
+    if args.trim is None:
+        box = result_box(view, args.points, args.margin, NAME)
+        zero_set = extract_zero_set(poly, bounds=box, resolution=args.resolution)
+    else:
+        points, faces = _trim_data(view, args.points)
+        # the box of result_box, without loading the data a second time
+        box = data_bounds(points if args.points is not None or view.bounds is None else view.bounds.T, args.margin)
+        zero_set, summary = trim_for_export(extract_zero_set(poly, bounds=box, resolution=args.resolution), points,
+                                            faces, args.trim)
     with outputs.writing() as stage:
         zero_set.save(stage(args.output))
     what = (f"{len(zero_set.vertices)} vertices, {len(zero_set.faces)} faces" if zero_set.dim == 3
             else f"{len(zero_set.curves)} curves")
     print(f"{args.output}: degree {poly.degree}, {what}, {zero_set.n_components} component(s), "
           f"{'closed' if zero_set.closed else 'open'} in the box, grid step {zero_set.step:.4g}")
+    if summary:
+        print(summary)
     return 0

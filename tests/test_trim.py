@@ -1,0 +1,280 @@
+"""Trimming an extracted zero set to the data (``ZeroSet.trimmed``, ``ipfit fit/mesh --trim``).
+
+The open shape is a cup made here: the side wall x² + y² = 1, 0 ≤ z ≤ 2, and the bottom
+disk z = 0, with no lid. A polynomial's zero set cannot be open, so the fit closes the cup;
+trimming must take the lid off and leave the polynomial alone.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.spatial import cKDTree
+
+import ipfit
+from ipfit.cli import main
+from ipfit.datasets import synthetic
+from ipfit.exceptions import InvalidInputError
+from ipfit.trim import default_trim_distance, trim_zero_set
+
+CUP_HEIGHT = 2.0
+
+
+def cup(n: int, rng) -> tuple[np.ndarray, np.ndarray]:
+    """Points and outward normals spread evenly by area over the open cup."""
+    n_side = round(n * 4 / 5)  # side 4π, bottom π
+    theta, z = rng.uniform(0, 2 * np.pi, n_side), rng.uniform(0, CUP_HEIGHT, n_side)
+    side = np.column_stack([np.cos(theta), np.sin(theta), z])
+    r, phi = np.sqrt(rng.uniform(0, 1, n - n_side)), rng.uniform(0, 2 * np.pi, n - n_side)
+    bottom = np.column_stack([r * np.cos(phi), r * np.sin(phi), np.zeros(n - n_side)])
+    normals = np.vstack([side * [1, 1, 0], np.tile([0.0, 0.0, -1.0], (n - n_side, 1))])
+    return np.vstack([side, bottom]), normals
+
+
+def distance_to_cup(p: np.ndarray) -> np.ndarray:
+    """Exact distance to the open cup's surface (side wall and bottom disk)."""
+    rho, z = np.hypot(p[:, 0], p[:, 1]), p[:, 2]
+    to_wall = np.hypot(rho - 1, z - np.clip(z, 0, CUP_HEIGHT))
+    to_bottom = np.hypot(np.maximum(rho - 1, 0), z)
+    return np.minimum(to_wall, to_bottom)
+
+
+def areas(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    a, b, c = (vertices[faces[:, i]] for i in range(3))
+    return 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
+
+
+@pytest.fixture
+def fitted_cup(rng):
+    points, normals = cup(3000, rng)
+    poly = ipfit.fit_3l(points, normals, 4)
+    return points, poly, ipfit.extract_zero_set(poly, points=points, resolution=64)
+
+
+# -- the library ------------------------------------------------------------------------------
+
+def test_trimming_the_cup_raises_precision_and_keeps_the_polynomial(fitted_cup):
+    points, poly, zs = fitted_cup
+    coefficients = poly.coefficients.copy()
+    assert zs.closed  # the fit closes the cup: a lid where there is no data
+    trimmed = zs.trimmed(points)
+    distance = trimmed.trim.distance
+    assert distance == default_trim_distance(points)
+    before, after = ipfit.quality(zs, points), ipfit.quality(trimmed, points)
+    assert after.precision > before.precision + 0.1
+    assert after.recall >= before.recall - 0.005  # nothing the data needs went
+    # every kept face's vertices are within the distance of a data point (an independent k-d tree)
+    assert cKDTree(points).query(trimmed.vertices)[0].max() <= distance
+    assert trimmed.vertices[:, 2].max() <= CUP_HEIGHT + distance  # the lid is gone
+    assert not trimmed.closed and trimmed.trim.removed_faces > 0
+    # the kept faces are exactly those whose three vertices are within the distance
+    near = cKDTree(points).query(zs.vertices)[0] <= distance
+    keep = near[zs.faces].all(axis=1)
+    assert len(trimmed.faces) == keep.sum()
+    area = areas(zs.vertices, zs.faces)
+    assert math.isclose(areas(trimmed.vertices, trimmed.faces).sum(), area[keep].sum(), rel_tol=1e-9)
+    assert math.isclose(trimmed.trim.removed_share, area[~keep].sum() / area.sum(), rel_tol=1e-9)
+    # no dangling vertices, and the polynomial is the same, bit for bit
+    assert np.array_equal(np.unique(trimmed.faces), np.arange(len(trimmed.vertices)))
+    assert trimmed.polynomial is poly and np.array_equal(poly.coefficients, coefficients)
+
+
+def test_trimming_to_a_mesh_measures_to_its_faces_not_its_vertices(fitted_cup):
+    # A coarse open cup mesh: its wall has vertices only on the rims, 2 apart.
+    trimesh = pytest.importorskip("trimesh")
+    _, _, zs = fitted_cup
+    mesh = trimesh.creation.cylinder(radius=1.0, height=CUP_HEIGHT, sections=64)
+    vertices = np.asarray(mesh.vertices) + [0, 0, CUP_HEIGHT / 2]
+    faces = np.asarray(mesh.faces)
+    lid = np.isclose(vertices[faces][:, :, 2], CUP_HEIGHT).all(axis=1)
+    faces = faces[~lid]
+    distance = 0.15
+    to_faces = zs.trimmed(vertices, distance, faces=faces)
+    to_vertices = zs.trimmed(vertices, distance)
+    assert to_faces.trim.reference == "faces" and to_vertices.trim.reference == "points"
+    # polygon vs circle (1 - cos(π/64) < 0.0013) and the fit's own error are far below the distance
+    assert distance_to_cup(to_faces.vertices).max() <= distance + 0.0013
+    assert to_faces.vertices[:, 2].max() <= CUP_HEIGHT + distance
+    # the wall between the rims stays: only the lid (π of the ~5π + lid) goes
+    assert 0.1 < to_faces.trim.removed_share < 0.25
+    assert to_vertices.trim.removed_share > to_faces.trim.removed_share + 0.3
+
+
+def test_a_closed_shape_loses_nothing_at_the_default_distance(rng):
+    shape = synthetic.sphere(2000, rng=rng)
+    poly = ipfit.fit_3l(shape.points, shape.normals, 2)
+    zs = ipfit.extract_zero_set(poly, points=shape.points, resolution=64)
+    trimmed = zs.trimmed(shape.points)
+    assert trimmed.trim.removed_share < 0.001  # stated bound: under 0.1 % of the area
+    assert trimmed.closed == (trimmed.trim.removed_faces == 0)
+
+
+def test_hemisphere_data_keeps_the_analytic_cap():
+    # Data on the lower half of the unit sphere: a point at angle α above the equator is
+    # 2 sin(α/2) from the rim, so the kept cap reaches sin α = sin(2 asin(d/2)); its area
+    # is 2π(1 + sin α), and the removed share (1 - sin α) / 2.
+    shape = synthetic.sphere(40000)
+    bowl = shape.points[shape.points[:, 2] < 0]
+    zs = ipfit.extract_zero_set(shape.polynomial, points=shape.points, resolution=96)
+    distance = 0.3
+    trimmed = zs.trimmed(bowl, distance)
+    sin_alpha = math.sin(2 * math.asin(distance / 2))
+    expected = (1 - sin_alpha) / 2
+    # Data points are no nearer than the hemisphere, so no more is kept than the cap; a face
+    # crossing the cut goes whole, a band at most one face (√3 grid steps) wide along the
+    # cut circle, of length 2π cos α, out of the sphere's 4π.
+    band = 2 * math.pi * math.sqrt(1 - sin_alpha**2) * math.sqrt(3) * zs.step / (4 * math.pi)
+    assert expected - 0.003 < trimmed.trim.removed_share < expected + band
+    assert trimmed.n_components == 1
+
+
+def test_a_2d_curve_is_cut_into_the_pieces_near_the_data():
+    zs = ipfit.extract_zero_set(synthetic.circle().polynomial, bounds=[[-1.5, 1.5], [-1.5, 1.5]])
+    t = np.linspace(-np.pi / 2, np.pi / 2, 2000)
+    right = np.column_stack([np.cos(t), np.sin(t)])
+    distance = 0.2
+    trimmed = trim_zero_set(zs, right, distance)
+    expected = (np.pi - 4 * math.asin(distance / 2)) / (2 * np.pi)  # the arcs beyond the chord 2 sin(φ/2) = d
+    assert abs(trimmed.trim.removed_share - expected) < 0.005
+    assert len(trimmed.curves) == 1 and trimmed.curve_closed == (False,)  # one arc across the loop's seam
+    assert cKDTree(right).query(np.concatenate(trimmed.curves))[0].max() <= distance
+    assert "curve length" in trimmed.trim.describe()
+    # two runs of data on opposite sides: two arcs
+    top_bottom = np.concatenate([right[np.abs(right[:, 1]) > 0.9], -right[np.abs(right[:, 1]) > 0.9]])
+    assert len(trim_zero_set(zs, top_bottom, 0.1).curves) == 2
+
+
+@pytest.mark.parametrize("distance", [-1.0, 0.0, np.nan, np.inf, "abc"])
+def test_bad_distances_are_refused(fitted_cup, distance):
+    points, _, zs = fitted_cup
+    with pytest.raises(InvalidInputError, match="distance"):
+        zs.trimmed(points, distance)
+
+
+def test_bad_data_is_refused(fitted_cup):
+    points, _, zs = fitted_cup
+    with pytest.raises(InvalidInputError, match="points"):
+        zs.trimmed(points[:, :2])
+    with pytest.raises(InvalidInputError, match="zero_set"):
+        trim_zero_set(zs.polynomial, points)
+    circle = ipfit.extract_zero_set(synthetic.circle().polynomial, bounds=[[-1.5, 1.5], [-1.5, 1.5]])
+    with pytest.raises(InvalidInputError, match="faces"):
+        circle.trimmed(synthetic.circle().points, faces=[[0, 1, 2]])
+    with pytest.raises(InvalidInputError, match="identical"):
+        zs.trimmed(np.ones((5, 3)))
+
+
+# -- the command line ---------------------------------------------------------------------------
+
+def run(capsys, argv) -> tuple[int, str, str]:
+    try:
+        code = main([str(a) for a in argv])
+    except SystemExit as exc:  # argparse's own errors
+        code = exc.code
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+@pytest.fixture
+def cup_file(tmp_path, rng):
+    points, normals = cup(2000, rng)
+    return ipfit.write_points(tmp_path / "cup.ply", points, normals), points
+
+
+def read_mesh(path):
+    import trimesh
+
+    return trimesh.load(path, process=False)
+
+
+def test_fit_trim_writes_a_smaller_mesh_and_the_same_json(cup_file, tmp_path, capsys):
+    path, points = cup_file
+    common = ["fit", path, "--degree", "4", "--method", "3l", "--no-picture"]
+    code, out, err = run(capsys, common + ["-o", tmp_path / "whole"])
+    assert code == 0, err
+    code, out, err = run(capsys, common + ["--trim", "-o", tmp_path / "trimmed"])
+    assert code == 0, err
+    line = [s for s in out.splitlines() if s.startswith("trimmed ")]
+    assert len(line) == 1 and "% of the surface area farther than" in line[0], out
+    whole, trimmed = read_mesh(tmp_path / "whole.ply"), read_mesh(tmp_path / "trimmed.ply")
+    assert len(trimmed.faces) < len(whole.faces)
+    distance = default_trim_distance(points)
+    assert f"{distance:.4g}" in line[0]
+    assert cKDTree(points).query(np.asarray(trimmed.vertices))[0].max() <= distance * (1 + 1e-6)
+    a = json.loads((tmp_path / "whole.json").read_text())
+    b = json.loads((tmp_path / "trimmed.json").read_text())
+    assert a["coefficients"] == b["coefficients"] and "trim" not in b
+    # an explicit distance: at least as much is kept as with the smaller default
+    code, out, err = run(capsys, common + ["--trim", "0.5", "-o", tmp_path / "wide"])
+    assert code == 0, err
+    assert "farther than 0.5 from the data" in out, out
+    assert len(trimmed.faces) <= len(read_mesh(tmp_path / "wide.ply").faces) < len(whole.faces)
+
+
+@pytest.mark.parametrize("value", ["-1", "abc", "0", "nan"])
+def test_fit_refuses_a_bad_trim_distance(cup_file, tmp_path, capsys, value):
+    path, _ = cup_file
+    before = sorted(tmp_path.iterdir())
+    code, out, err = run(capsys, ["fit", path, "--degree", "4", "--method", "3l", "--trim", value,
+                                  "-o", tmp_path / "bad"])
+    assert code == 2
+    assert err.count("\n") == 1 and err.startswith("ipfit fit: error: argument --trim:"), err
+    assert "Traceback" not in err
+    assert sorted(tmp_path.iterdir()) == before
+
+
+def test_fit_refuses_trim_without_the_zero_set(cup_file, tmp_path, capsys):
+    path, _ = cup_file
+    code, out, err = run(capsys, ["fit", path, "--degree", "4", "--method", "3l", "--trim", "--no-zero-set",
+                                  "-o", tmp_path / "x"])
+    assert code == 2 and err.count("\n") == 1 and "--no-zero-set" in err, err
+    assert not list(tmp_path.glob("x.*"))
+
+
+def test_mesh_trim_uses_the_recorded_data_or_points(cup_file, tmp_path, capsys):
+    path, points = cup_file
+    code, _, err = run(capsys, ["fit", path, "--degree", "4", "--method", "3l", "--no-picture", "--no-zero-set",
+                                "-o", tmp_path / "fit"])
+    assert code == 0, err
+    result = tmp_path / "fit.json"
+    code, out, err = run(capsys, ["mesh", result, "-o", tmp_path / "whole.ply"])
+    assert code == 0, err
+    code, out, err = run(capsys, ["mesh", result, "-o", tmp_path / "recorded.ply", "--trim"])
+    assert code == 0, err
+    assert out.splitlines()[-1].startswith("trimmed ") and "surface area" in out
+    code, out, err = run(capsys, ["mesh", result, "-o", tmp_path / "given.ply", "--points", path, "--trim", "0.2"])
+    assert code == 0, err
+    assert "farther than 0.2 from" in out, out
+    whole, recorded, given = (read_mesh(tmp_path / f"{n}.ply") for n in ("whole", "recorded", "given"))
+    assert len(recorded.faces) < len(whole.faces) and len(given.faces) < len(whole.faces)
+    assert cKDTree(points).query(np.asarray(given.vertices))[0].max() <= 0.2
+
+    # without data to trim to: one clear line, nothing written
+    moved = json.loads(result.read_text())
+    moved["input"] = {"source": "gone.ply", "n_points": len(points), "normals": "file"}
+    (tmp_path / "moved.json").write_text(json.dumps(moved))
+    code, out, err = run(capsys, ["mesh", tmp_path / "moved.json", "-o", tmp_path / "none.ply", "--trim"])
+    assert code == 2 and err.count("\n") == 1 and "--trim" in err and "--points DATA" in err, err
+    # a distance that leaves nothing
+    code, out, err = run(capsys, ["mesh", result, "-o", tmp_path / "none.ply", "--trim", "1e-9"])
+    assert code == 2 and err.count("\n") == 1 and "larger distance" in err, err
+    assert not (tmp_path / "none.ply").exists()
+
+
+def test_mesh_trims_2d_curves(tmp_path, capsys):
+    shape = synthetic.circle(400)
+    path = tmp_path / "circle.json"
+    shape.polynomial.save(path)
+    right = shape.points[shape.points[:, 0] > 0]
+    data = tmp_path / "right.csv"
+    np.savetxt(data, right, delimiter=",", header="x,y", comments="")
+    code, out, err = run(capsys, ["mesh", path, "-o", tmp_path / "c.csv", "--points", data, "--trim", "0.1"])
+    assert code == 0, err
+    assert "of the curve length farther than 0.1" in out, out
+    rows = np.loadtxt(tmp_path / "c.csv", delimiter=",", comments="#", skiprows=3)
+    assert cKDTree(right).query(rows[:, 1:])[0].max() <= 0.1
+    assert Path(tmp_path / "c.csv").exists()
