@@ -16,10 +16,11 @@ import pytest
 from scipy.spatial import cKDTree
 
 import ipfit
-from ipfit.cli import main
 from ipfit.datasets import synthetic
 from ipfit.exceptions import InvalidInputError
 from ipfit.trim import default_trim_distance, trim_zero_set
+
+from test_cli_mesh_plot_score import run
 
 CUP_HEIGHT = 2.0
 
@@ -169,15 +170,6 @@ def test_bad_data_is_refused(fitted_cup):
 
 
 # -- the command line ---------------------------------------------------------------------------
-
-def run(capsys, argv) -> tuple[int, str, str]:
-    try:
-        code = main([str(a) for a in argv])
-    except SystemExit as exc:  # argparse's own errors
-        code = exc.code
-    out, err = capsys.readouterr()
-    return code, out, err
-
 
 @pytest.fixture
 def cup_file(tmp_path, rng):

@@ -40,7 +40,7 @@ Outputs, all written together or not at all (-o PREFIX, or -o PREFIX.json):
 
 --trim [DIST] exports only the part of the zero set within DIST of the data (an open scan stays
 open; without DIST: 5 x the median point spacing, or 2% of the box diagonal if larger); the
-polynomial, the JSON and the picture are those of the whole fit, and one line says what went.
+polynomial, the JSON, the picture and the HTML show the whole fit, and one line says what went.
 
 Odd degrees are accepted with a warning: their zero set is never bounded. Ctrl-C (or SIGTERM)
 stops cleanly: the outputs keep every degree already finished; before the first one, nothing
