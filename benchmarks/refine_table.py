@@ -77,7 +77,7 @@ def main() -> None:
     # The paper's objective (no far-field term) with the paper's DE/PSO parameters: every point,
     # every iteration (no subsampled search, no stall stop), started from every linear fit.
     opts = RECOMMENDED.replace(far_term_weight=0.0, iterations=args.iterations, search_points=None,
-                               stall_generations=None)
+                               stall_generations=None, polish_iterations=1000)
 
     rows, notes = [], []
     columns = (["DE, raw coefficients"] if args.raw else []) + ["DE", "DE + polish"] + (["PSO + polish"] if args.pso else [])

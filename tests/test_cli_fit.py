@@ -12,6 +12,8 @@ import pytest
 import ipfit
 
 from ipfit.adaptive import select_degree, select_degree_geometric
+from ipfit.quality import Quality
+from ipfit.rules import is_clean, select_degree_capture
 from ipfit.cli import main
 
 
@@ -40,6 +42,9 @@ def assert_obeys_its_rule(data):
     complete = data["adaptive"]["reason"] != "interrupted"
     if data["adaptive"]["rule"] == "paper":
         index, _ = select_degree(degrees, smooth, epsilon, complete)
+    elif data["adaptive"]["rule"] == "capture":
+        quality = [Quality(**{**d["quality"], "spurious": tuple(d["quality"]["spurious"])}) for d in data["degrees"]]
+        index = select_degree_capture(degrees, [q.f_score for q in quality], [is_clean(q) for q in quality])
     else:
         quality = [d["quality"] for d in data["degrees"]]
         clean = [q["n_spurious"] == 0 and q["closed"] for q in quality]
@@ -165,7 +170,8 @@ def test_ctrl_c_keeps_every_finished_degree(tmp_path, monkeypatch):
         return real(points, normals, degree, method, **params)
 
     monkeypatch.setattr(adaptive, "fit_linear", interrupting)
-    code = main(["fit", "boot", "-o", str(tmp_path / "boot"), "--method", "3l", "--epsilon", "-1", "--quiet"])
+    code = main(["fit", "boot", "-o", str(tmp_path / "boot"), "--method", "3l", "--epsilon", "-1", "--rule", "paper",
+                 "--quiet"])
     assert code == 130
     data = json.loads((tmp_path / "boot.json").read_text())
     assert [d["degree"] for d in data["degrees"]] == [2, 4]

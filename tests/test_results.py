@@ -36,7 +36,7 @@ def padded(poly, degree: int) -> list[float]:
 def fitted() -> dict:
     """A result as ``fit_adaptive`` writes it (ellipse, 3L, degrees 2 and 4), plus CLI keys."""
     shape = synthetic.ellipse(120)
-    data = fit_adaptive(shape.points, shape.normals, method="3l", max_degree=4).to_dict()
+    data = fit_adaptive(shape.points, shape.normals, method="3l", max_degree=4, rule="geometric").to_dict()
     data["input"] = {"source": "ellipse.csv", "path": "/nowhere/ellipse.csv", "n_points": 120, "normals": "file"}
     data["bounds"] = np.column_stack([shape.points.min(axis=0), shape.points.max(axis=0)]).tolist()
     circle = synthetic.circle().polynomial

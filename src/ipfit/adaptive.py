@@ -1,9 +1,9 @@
-"""Adaptive degree selection: the paper's Algorithm 1.
+"""Adaptive degree selection: the paper's Algorithm 1, and the rules built on it.
 
-For g = 2, 4, …, G, fit at degree g with a fixed-degree method; stop as soon as the
-smoothness improves by no more than ε over the previous degree and return that previous
-degree; if the loop reaches G, return G. Every degree tried is kept, so a user can inspect
-the whole path and take another degree.
+For g = 2, 4, …, G, fit at degree g with a fixed-degree method and, with a geometric rule,
+measure the zero set's quality; a degree rule (:mod:`ipfit.rules`) says when to stop and which
+degree to take. Every degree tried is kept, so a user can inspect the whole path and take
+another degree.
 """
 
 from __future__ import annotations
@@ -26,10 +26,9 @@ from .objective import Measures, measures as compute_measures
 from .options import (DEFAULT_DELTA, DEFAULT_EPSILON, DEFAULT_METHOD, DEFAULT_RULE, RECOMMENDED, REFINE_METHODS,
                       SearchOptions, renamed_keywords)
 from .polynomial import ImplicitPolynomial
-from .quality import Quality, looks_like_contour, quality, spurious_components
-from .zeroset import extract_zero_set
+from .quality import Quality, looks_like_contour, quality, stray_samples
 from .refine import _RENAMED as _RENAMED_SEARCH, refine
-from .rules import RULES, explain, select, select_degree, select_degree_geometric, verdict
+from .rules import RULES, capture_stop, explain, is_clean, select, select_degree, select_degree_geometric, verdict
 
 __all__ = ["fit_adaptive", "AdaptiveResult", "DegreeResult", "select_degree", "select_degree_geometric",
            "fixed_degree_methods", "DEFAULT_MAX_DEGREE", "RULES"]
@@ -38,8 +37,16 @@ __all__ = ["fit_adaptive", "AdaptiveResult", "DegreeResult", "select_degree", "s
 #: L-BFGS iterations of a clean-up polish: the kept-clear samples act early (the bunny's degree-6
 #: blobs went in a 7 s polish), while a full 1000-iteration one took 26 s at degree 8.
 CLEANUP_POLISH_ITERATIONS = 200
+#: The capture rule also repairs a clean degree whose precision is below this (:func:`_repair`).
+PRECISION_TARGET = 0.95
 #: Maximum degree tried by default, per dimension (the paper: degrees 2 to 10 are the norm).
 DEFAULT_MAX_DEGREE = {2: 10, 3: 8}
+#: ... and with the capture rule, which stops by itself once the shape is captured and so can
+#: afford the higher degrees that thin or detailed contours need (docs/degree-rule.md).
+CAPTURE_MAX_DEGREE = {2: 14, 3: 8}
+#: Automatic degrees (no max_degree given) keep at least this many points per coefficient:
+#: near interpolation, a fit follows the points and wiggles between them.
+POINTS_PER_COEFFICIENT = 2
 
 
 def fixed_degree_methods() -> tuple[str, ...]:
@@ -117,7 +124,8 @@ class AdaptiveResult(Result):
     polynomial : the fit at the selected degree (measures filled in).
     selected_degree : int
     degrees : one :class:`DegreeResult` per degree tried, in order.
-    reason : 'criterion', 'max_degree', 'geometric', 'fixed' or 'interrupted'.
+    reason : why the loop stopped or the degree was chosen: 'captured' or 'flattened' (capture
+        rule), 'criterion' (Algorithm 1), 'geometric', 'max_degree', 'fixed' or 'interrupted'.
     epsilon, delta, method, rule, seconds
     options : the search settings used by a refinement method (None for a linear fit).
     """
@@ -246,18 +254,22 @@ def fit_adaptive(points: ArrayLike, normals: ArrayLike | None = None, *, method:
     options : :class:`~ipfit.SearchOptions` of the refinement methods (default
         :data:`ipfit.RECOMMENDED`; :data:`ipfit.PAPER` is the paper's); an error with a linear
         method or a callable, which have no search.
-    max_degree : G, the last degree tried (default 10 in 2D, 8 in 3D).
+    max_degree : G, the last degree tried. Default: with the capture rule 14 in 2D and 8 in 3D,
+        lowered to the highest degree with at least 2 points per coefficient; with the other rules 10 in 2D and 8 in 3D (the paper).
     min_degree : the first degree tried (default 2).
     epsilon : ε, the smallest smoothness gain that justifies a higher degree.
     delta : δ of the paper's distance.
-    rule : 'geometric' (default) or 'paper' (Algorithm 1 exactly). 'geometric': the geometric
-        quality of every degree is measured (:func:`ipfit.quality.quality`: F-score, spurious
-        components, closed) and a degree whose zero set is not clean is not selected when a
-        clean one exists; the loop goes on past the paper's stop until a clean degree has
-        been seen.
+    rule : 'capture' (default), 'geometric' or 'paper' (Algorithm 1 exactly); see
+        :mod:`ipfit.rules`. 'capture' and 'geometric' measure the geometric quality of every
+        degree (:func:`ipfit.quality.quality`: F-score, precision, recall, spurious components,
+        closed) and try to clean a degree whose zero set is not clean before rejecting it.
+        'capture' goes on while a degree still gains substantially (smoothness, F-score, recall,
+        distances), stops once the shape is captured or two degrees in a row gain little, and
+        selects the lowest clean degree within 0.01 of the best clean F-score. 'geometric' is
+        the paper's rule restricted to clean degrees.
     faces, ordered_contour : describe the data's shape for the quality measures (mesh faces;
         a 2D contour in order, detected by :func:`ipfit.quality.looks_like_contour` when
-        None), used with ``rule='geometric'``.
+        None), used by the 'capture' and 'geometric' rules.
     rng : seed or Generator (SPEC 7), passed to the metaheuristics.
     progress : called with a dict per event ('degree_start', 'iteration' with its 'stage',
         'degree_done').
@@ -291,10 +303,11 @@ def fit_adaptive(points: ArrayLike, normals: ArrayLike | None = None, *, method:
     progress = _check_progress(progress)
     if ordered_contour is not None and not isinstance(ordered_contour, (bool, np.bool_)):
         raise error("ordered_contour", "True, False or None", repr(ordered_contour))
-    top = _top_degree(len(pts), dim, min_degree, max_degree)
+    top = _top_degree(len(pts), dim, min_degree, max_degree, rule)
     faces = None if faces is None else as_faces(faces, len(pts), dim)
     unit = estimate_normals(pts) if normals is None else as_normals(normals, pts)
-    if rule == "geometric" and ordered_contour is None:
+    measured = rule != "paper"
+    if measured and ordered_contour is None:
         ordered_contour = dim == 2 and looks_like_contour(pts)
     fitter = _Fitter(method, options if method in REFINE_METHODS else None, delta, generator, progress)
     degrees = list(range(min_degree, top + 1, 2)) if top > min_degree else [min_degree]
@@ -305,9 +318,9 @@ def fit_adaptive(points: ArrayLike, normals: ArrayLike | None = None, *, method:
         if progress is not None:
             progress({"event": "degree_start", "degree": degree})
         try:
-            entry = _fit_degree(fitter, pts, unit, degree, delta, rule, faces, ordered_contour)
-            if rule == "geometric" and not entry.clean and fitter.options is not None:
-                entry = _clean_up(entry, fitter, pts, unit, delta, faces, ordered_contour)
+            entry = _fit_degree(fitter, pts, unit, degree, delta, measured, faces, ordered_contour)
+            if measured and fitter.options is not None and not _done(entry, rule):
+                entry = _repair(entry, fitter, pts, unit, delta, faces, ordered_contour, rule)
         except KeyboardInterrupt:
             if not results:
                 raise
@@ -317,17 +330,23 @@ def fit_adaptive(points: ArrayLike, normals: ArrayLike | None = None, *, method:
         results.append(entry)
         if progress is not None:
             progress({"event": "degree_done", **entry.to_dict()})
-        if len(results) >= 2 and results[-1].smoothness - results[-2].smoothness <= epsilon:
+        if rule == "capture":
+            stop = capture_stop(results, epsilon)
+            if stop is not None:
+                reason = stop
+                break
+        elif len(results) >= 2 and results[-1].smoothness - results[-2].smoothness <= epsilon:
             if rule == "paper" or any(r.clean for r in results):
                 reason = "criterion"
                 break
     index, reason = select(results, rule, epsilon, reason, fixed=len(degrees) == 1)
-    message = explain(results, index, reason, epsilon)
+    message = explain(results, index, reason, epsilon, rule)
     results = [dataclasses.replace(r, reason=verdict(results, i, index, message, rule, epsilon))
                for i, r in enumerate(results)]
     chosen = results[index]
     name = method if isinstance(method, str) else getattr(method, "__name__", "custom")
-    success = reason != "interrupted" and (rule == "paper" or chosen.clean or not any(r.clean for r in results))
+    success = reason != "interrupted" and (rule == "paper" or _clean(chosen, rule)
+                                           or not any(_clean(r, rule) for r in results))
     return AdaptiveResult(
         x=chosen.x, fun=chosen.fun, nit=len(results), nfev=sum(r.nfev for r in results), success=success,
         message=message, polynomial=chosen.polynomial,
@@ -359,9 +378,20 @@ def check_settings(method, options, rule, epsilon, delta, min_degree, max_degree
     return method, options, rule, epsilon, delta, min_degree
 
 
-def _top_degree(n_points: int, dim: int, min_degree: int, max_degree: int | None) -> int:
-    top = DEFAULT_MAX_DEGREE[dim] if max_degree is None else check_int(max_degree, "max_degree", minimum=min_degree)
+def _clean(entry: "DegreeResult", rule: str) -> bool:
+    return is_clean(entry.quality) if rule == "capture" else entry.clean
+
+
+def _top_degree(n_points: int, dim: int, min_degree: int, max_degree: int | None, rule: str = "paper") -> int:
+    if max_degree is None:
+        top = (CAPTURE_MAX_DEGREE if rule == "capture" else DEFAULT_MAX_DEGREE)[dim]
+    else:
+        top = check_int(max_degree, "max_degree", minimum=min_degree)
     largest_possible = max((g for g in range(1, top + 1) if basis.n_coefficients(dim, g) <= n_points), default=0)
+    if rule == "capture" and max_degree is None:
+        comfortable = max((g for g in range(1, top + 1)
+                           if POINTS_PER_COEFFICIENT * basis.n_coefficients(dim, g) <= n_points), default=0)
+        largest_possible = min(largest_possible, max(comfortable, min_degree))
     if largest_possible < min_degree:
         check_enough_points(n_points, dim, min_degree)
     if top > largest_possible:
@@ -373,57 +403,76 @@ def _top_degree(n_points: int, dim: int, min_degree: int, max_degree: int | None
     return top
 
 
-def _clean_up(entry: DegreeResult, fitter: _Fitter, pts, unit, delta, faces, ordered_contour) -> DegreeResult:
-    """Try to make a degree whose zero set has spurious components clean: polish its fit again
-    with a far-field term that also holds samples of those components (so the zero set is pushed
-    off them), at each of the options' clean-up weights in turn; the first clean result replaces
-    it. Every attempt is recorded."""
-    places = _spurious_places(entry.polynomial, pts, faces, ordered_contour)
-    if places is None:
-        return entry
-    attempts, best, nfev = [], entry, entry.nfev
+def _done(entry: DegreeResult, rule: str) -> bool:
+    """Nothing left to repair: clean and, for the capture rule, precise enough."""
+    return _clean(entry, rule) and (rule != "capture" or entry.quality.precision >= PRECISION_TARGET)
+
+
+def _better(trial: DegreeResult, best: DegreeResult, rule: str) -> bool:
+    return (_clean(trial, rule), trial.quality.f_score) > (_clean(best, rule), best.quality.f_score)
+
+
+def _stray_distance(tau: float, pts, faces, ordered_contour) -> float:
+    if faces is not None or ordered_contour:
+        return tau
+    # A bare cloud: between its points even a perfect surface is up to about a spacing away from
+    # the nearest one; only what lies beyond that is stray.
+    from scipy.spatial import cKDTree
+
+    return max(tau, 2 * float(np.median(cKDTree(pts).query(pts, k=2)[0][:, 1])))
+
+
+def _repair(entry: DegreeResult, fitter: _Fitter, pts, unit, delta, faces, ordered_contour, rule: str) -> DegreeResult:
+    """Try to make a degree clean (and, for the capture rule, precise) before the rule judges it.
+
+    Its zero set's stray parts (farther than τ from the data: spurious components, sheets,
+    bulges and lobes attached to the shape) are sampled and held clear by the far-field term in
+    an L-BFGS polish from its fit, at each of the options' clean-up weights in turn, the places
+    accumulating over rounds. The best result (clean first, then the F-score) replaces the fit;
+    every round is recorded in ``cleanup``.
+    """
+    polish = min(CLEANUP_POLISH_ITERATIONS, fitter.options.for_method("polish", dim=pts.shape[1])["polish_iterations"])
+    stray = _stray_distance(entry.quality.tau, pts, faces, ordered_contour)
+    target = "precision" if _clean(entry, rule) else "spurious components"
+    best = current = entry
+    places, attempts, nfev = [], [], entry.nfev
     for weight in fitter.options.cleanup_weights:
-        options = fitter.options.replace(far_term_weight=weight, start_fits=(),
-                                         polish_iterations=min(CLEANUP_POLISH_ITERATIONS,
-                                                               fitter.options.for_method("polish")["polish_iterations"]))
-        trial = _fit_degree(fitter, pts, unit, entry.degree, delta, "geometric", faces, ordered_contour,
-                            options=options, extra_starts=[entry.x], method="polish", keep_clear=places)
-        q = trial.quality
-        nfev += trial.nfev
-        attempts.append({"far_term_weight": weight, "clean": trial.clean, "f_score": q.f_score,
-                         "n_spurious": q.n_spurious, "closed": bool(q.closed), "seconds": trial.seconds})
-        if trial.clean:
-            # The degree's fit is still the method's, cleaned: keep its name (the JSON's
-            # "cleanup" records the polish).
-            kept = trial.polynomial.with_coefficients(trial.polynomial.coefficients, method=entry.polynomial.method)
-            best = dataclasses.replace(trial, polynomial=kept)
+        found = stray_samples(current.polynomial, pts, faces=faces, ordered_contour=bool(ordered_contour),
+                              distance=stray)
+        if len(found):
+            places.append(found)
+        if not places:
             break
-    seconds = entry.seconds + sum(a["seconds"] for a in attempts)
-    return dataclasses.replace(best, cleanup=tuple(attempts), seconds=seconds, nfev=nfev)
+        options = fitter.options.replace(far_term_weight=weight, start_fits=(), polish_iterations=polish)
+        trial = _fit_degree(fitter, pts, unit, entry.degree, delta, True, faces, ordered_contour, options=options,
+                            extra_starts=[current.x], method="polish", keep_clear=np.concatenate(places))
+        nfev += trial.nfev
+        attempts.append({"target": target, "far_term_weight": weight, "clean": _clean(trial, rule),
+                         "f_score": trial.quality.f_score, "precision": trial.quality.precision,
+                         "n_spurious": trial.quality.n_spurious, "closed": bool(trial.quality.closed),
+                         "seconds": trial.seconds})
+        if _better(trial, best, rule):
+            best = trial
+        if _clean(trial, rule):
+            current = trial
+        if _done(best, rule):
+            break
+    if best is not entry:
+        # The degree's fit is still the method's, repaired: keep its name ("cleanup" records it).
+        best = dataclasses.replace(best, polynomial=best.polynomial.with_coefficients(
+            best.polynomial.coefficients, method=entry.polynomial.method))
+    return dataclasses.replace(best, cleanup=tuple(attempts), seconds=entry.seconds + sum(a["seconds"] for a in attempts),
+                               nfev=nfev)
 
 
-def _spurious_places(poly: ImplicitPolynomial, pts, faces, ordered_contour, most: int = 400):
-    """Up to ``most`` points on the spurious components of ``poly``'s zero set (None if none)."""
-    zs = extract_zero_set(poly, points=pts)
-    flags = spurious_components(zs, pts, faces=faces, ordered_contour=bool(ordered_contour))
-    if not flags.any():
-        return None
-    labels = zs.component_labels
-    if zs.dim == 2:
-        places = np.concatenate([c for c, bad in zip(zs.curves, flags[labels]) if bad])
-    else:
-        places = zs.vertices[np.unique(zs.faces[flags[labels]])]
-    return places[:: max(1, len(places) // most)]
-
-
-def _fit_degree(fitter: _Fitter, pts, unit, degree, delta, rule, faces, ordered_contour, *, options=None,
+def _fit_degree(fitter: _Fitter, pts, unit, degree, delta, measured: bool, faces, ordered_contour, *, options=None,
                 extra_starts=(), method=None, keep_clear=None) -> DegreeResult:
     t0 = time.perf_counter()
     poly, solutions, nit, nfev, success, message = fitter(pts, unit, degree, options, extra_starts, method,
                                                           keep_clear)
     m = compute_measures(poly, pts, unit, delta=delta)
     poly = poly.with_coefficients(poly.coefficients, measures=m.to_dict())
-    q = quality(poly, pts, faces=faces, ordered_contour=ordered_contour) if rule == "geometric" else None
+    q = quality(poly, pts, faces=faces, ordered_contour=ordered_contour) if measured else None
     return DegreeResult(x=poly.coefficients, fun=float(m.distance), nit=nit, nfev=nfev, success=success,
                         message=message, degree=degree, polynomial=poly, measures=m,
                         seconds=time.perf_counter() - t0, quality=q, solutions=solutions)

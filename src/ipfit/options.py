@@ -30,13 +30,13 @@ from ._validation import check_choice, check_int, check_nonnegative, check_posit
 
 __all__ = ["SearchOptions", "RECOMMENDED", "PAPER", "PAPER_METHOD", "PAPER_RULE", "DEFAULT_METHOD",
            "DEFAULT_RULE", "DEFAULT_EPSILON", "DEFAULT_DELTA", "DEFAULT_ITERATIONS", "DEFAULT_START_FITS",
-           "REFINE_METHODS", "METHOD_DEFAULTS", "renamed_keywords"]
+           "REFINE_METHODS", "METHOD_DEFAULTS", "AUTO", "renamed_keywords"]
 
 #: Refinement methods: a metaheuristic with or without the L-BFGS polish stage, or the polish
 #: alone from the best start fit. "de" and "pso" are the paper's pure variants.
 REFINE_METHODS = ("de+polish", "pso+polish", "de", "pso", "polish")
 DEFAULT_METHOD = "de+polish"
-DEFAULT_RULE = "geometric"
+DEFAULT_RULE = "capture"
 #: ε of Algorithm 1 and δ of the paper's distance (Eq. 5); the paper's values.
 DEFAULT_EPSILON = 0.01
 DEFAULT_ITERATIONS = 500
@@ -51,7 +51,15 @@ DEFAULT_START_FITS = ("3l", "ridge", "gradient_one", "taubin", "lstsq", "3l(c=0.
 
 #: Defaults of the method-specific settings (the paper's DE and PSO parameters, Section 5.2).
 METHOD_DEFAULTS: Mapping[str, float | int] = {"mutation": 0.7, "recombination": 0.9, "chi": 0.729, "c1": 2.05,
-                                              "c2": 2.05, "polish_iterations": 1000}
+                                              "c2": 2.05, "polish_iterations": "auto"}
+#: What "auto" means for the settings whose best value depends on the dimension (measured in
+#: ``benchmarks/bench_search_budget.py``). A contour's 1,000 spread points sample it about as
+#: densely as 3,000 do a surface and halve the search's time on the larger contours; contours
+#: also kept their F-scores with a 30-generation stall and 300 polish iterations (35 % less
+#: time), where surfaces lost up to 0.03 (the bunny at degree 6) and keep 60 and 1,000.
+AUTO: Mapping[str, Mapping[int, Any]] = {"search_points": {2: 1000, 3: 3000},
+                                         "stall_generations": {2: 30, 3: 60},
+                                         "polish_iterations": {2: 300, 3: 1000}}
 _USED_BY = {"mutation": ("de",), "recombination": ("de",), "chi": ("pso",), "c1": ("pso",), "c2": ("pso",),
             "polish_iterations": ("polish",)}
 _START_PARAMS = {"3l": ("c", "far_row_weight"), "3l-far": ("c", "far_row_weight"),
@@ -101,7 +109,8 @@ class SearchOptions:
     chi, c1, c2 : float, optional
         PSO's constriction factor χ (default 0.729) and accelerations (2.05, 2.05).
     polish_iterations : int, optional
-        L-BFGS iterations of the polish stage (default 1000; 0 skips it).
+        L-BFGS iterations of the polish stage (default 300 in 2D, 1,000 in 3D, :data:`AUTO`;
+        0 skips it).
     start_fits : tuple of str
         The linear fits that start the population (:data:`DEFAULT_START_FITS`); ``()`` starts
         from random directions. With a far-field term, 3L with far-field rows joins them.
@@ -120,14 +129,15 @@ class SearchOptions:
         the polish and the reported measures always use float64).
     n_solutions : int, default 5
         How many best distinct solutions a refinement returns.
-    search_points : int or None, default 3000
+    search_points : int, None or "auto", default "auto"
         DE/PSO evaluate the population on a well-spread subsample of this many points
         (:func:`ipfit.sampling.spread_subsample`, fixed seed); the start fits' ranking, the
         polish and every reported measure use all points. None: all points (the paper).
-    stall_generations : int or None, default 60
+        "auto": 1,000 in 2D, 3,000 in 3D (:data:`AUTO`).
+    stall_generations : int, None or "auto", default "auto"
         End DE/PSO when the best objective value has not improved by more than
         ``stall_tolerance`` (relative) over this many generations. None: always run
-        ``iterations`` generations (the paper).
+        ``iterations`` generations (the paper). "auto": 30 in 2D, 60 in 3D (:data:`AUTO`).
     stall_tolerance : float, default 1e-4
     warm_start : bool, default False
         :func:`ipfit.fit_adaptive` starts each degree also from the previous degree's solution
@@ -168,8 +178,8 @@ class SearchOptions:
     far_term_weight: float = DEFAULT_TERM_WEIGHT
     dtype: str = "float64"
     n_solutions: int = 5
-    search_points: int | None = 3000
-    stall_generations: int | None = 60
+    search_points: int | None | str = "auto"
+    stall_generations: int | None | str = "auto"
     stall_tolerance: float = 1e-4
     warm_start: bool = False
     cleanup_weights: tuple[float, ...] = (1.0, 10.0)
@@ -212,9 +222,9 @@ class SearchOptions:
             dtype = repr(dtype)
         set_("dtype", check_choice(dtype, "dtype", ("float64", "float32")))
         set_("n_solutions", check_int(self.n_solutions, "n_solutions", minimum=1))
-        if self.search_points is not None:
+        if self.search_points is not None and self.search_points != "auto":
             set_("search_points", check_int(self.search_points, "search_points", minimum=10))
-        if self.stall_generations is not None:
+        if self.stall_generations is not None and self.stall_generations != "auto":
             set_("stall_generations", check_int(self.stall_generations, "stall_generations", minimum=1))
         set_("stall_tolerance", check_nonnegative(self.stall_tolerance, "stall_tolerance"))
         if not isinstance(self.warm_start, (bool, np.bool_)):
@@ -236,11 +246,15 @@ class SearchOptions:
                         + ")", "an unknown name")
         return dataclasses.replace(self, **changes)
 
-    def for_method(self, method: str) -> dict[str, Any]:
-        """Every setting resolved for ``method`` (one of :data:`REFINE_METHODS`).
+    def for_method(self, method: str, dim: int | None = None) -> dict[str, Any]:
+        """Every setting resolved for ``method`` (one of :data:`REFINE_METHODS`), and "auto"
+        values for data of dimension ``dim`` when it is given.
 
         A method-specific setting given explicitly for a method that does not use it raises
         :class:`~ipfit.InvalidInputError`.
+
+        >>> RECOMMENDED.for_method("de+polish", dim=2)["search_points"]
+        1000
         """
         method = check_choice(method, "method", REFINE_METHODS)
         stages = set(method.split("+"))
@@ -251,6 +265,10 @@ class SearchOptions:
                             f"{name}={out[name]!r}", "Leave it unset or pick a method that uses it.")
             if out[name] is None:
                 out[name] = METHOD_DEFAULTS[name]
+        if dim is not None:
+            for name, values in AUTO.items():
+                if out[name] == "auto":
+                    out[name] = values[dim]
         return out
 
     def to_dict(self) -> dict[str, Any]:

@@ -39,7 +39,7 @@ from ._validation import as_faces, as_points, check_int, check_positive, error
 from .polynomial import ImplicitPolynomial
 from .zeroset import Samples, ZeroSet, extract_zero_set, sample_segments, sample_triangles
 
-__all__ = ["Quality", "quality", "spurious_components", "looks_like_contour", "DEFAULT_TAU_FRACTION"]
+__all__ = ["Quality", "quality", "spurious_components", "stray_samples", "looks_like_contour", "DEFAULT_TAU_FRACTION"]
 
 DEFAULT_TAU_FRACTION = 0.02
 DEFAULT_MAX_SAMPLES = 2_000_000
@@ -55,6 +55,8 @@ class Quality:
     chamfer : symmetric Chamfer distance in user units (inf when the zero set is empty).
     n_components, n_spurious : pieces of the zero set in the box, and those far from the data.
     closed : the zero set is non-empty and closes inside the box.
+    n_open : pieces near the data (not spurious) that leave the box: an open sheet or curve
+        where the data is closed, as opposed to a stray piece far away reaching the box's edge.
     tau : the tolerance used, in user units.
     data_to_zero_set, zero_set_to_data : the two one-sided mean distances.
     grid_step : the extraction grid's step (the zero set's own accuracy).
@@ -77,6 +79,7 @@ class Quality:
     grid_step: float
     reference: str
     spurious: tuple[dict, ...] = ()
+    n_open: int = 0
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready values (infinite distances become None)."""
@@ -307,9 +310,27 @@ def spurious_components(zero_set: ZeroSet, points: ArrayLike, **options) -> NDAr
     return _measure(zero_set, points, **options)[1]
 
 
+def stray_samples(model: ImplicitPolynomial | ZeroSet, points: ArrayLike, *, most: int = 400,
+                  distance: float | None = None, **options) -> NDArray[np.float64]:
+    """Up to ``most`` samples (evenly taken) of the zero set farther than ``distance`` (default τ)
+    from the data's shape: the part that costs precision (spurious components, bulges, sheets).
+    ``options`` are those of :func:`quality`.
+
+    >>> from ipfit.datasets import synthetic
+    >>> two = synthetic.from_terms(2, 4, {(4, 0): 1, (2, 0): -2, (0, 2): 1, (0, 0): 0.75})
+    >>> zs = extract_zero_set(two, bounds=[[-2, 2], [-1, 1]])
+    >>> right = np.concatenate([c for c in zs.curves if c[:, 0].mean() > 0])
+    >>> bool(np.all(stray_samples(zs, right)[:, 0] < 0))
+    True
+    """
+    _, _, samples, d_zero, tau = _measure(model, points, **options, details=True)
+    far = samples[d_zero > (tau if distance is None else check_positive(distance, "distance"))]
+    return far[:: max(1, -(-len(far) // check_int(most, "most", minimum=1)))]
+
+
 def _measure(model, points, *, faces=None, ordered_contour=False, tau=None, tau_fraction=DEFAULT_TAU_FRACTION,
              bounds=None, margin=0.25, resolution=None, spacing=None,
-             max_samples=DEFAULT_MAX_SAMPLES) -> tuple[Quality, NDArray[np.bool_]]:
+             max_samples=DEFAULT_MAX_SAMPLES, details: bool = False):
     pts = as_points(points, min_points=2)
     dim = pts.shape[1]
     if isinstance(model, ImplicitPolynomial):
@@ -349,6 +370,8 @@ def _measure(model, points, *, faces=None, ordered_contour=False, tau=None, tau_
 
     n_components = zs.n_components
     if zs.is_empty:
+        if details:
+            return None, np.zeros(0, dtype=bool), np.empty((0, dim)), np.empty(0), tau
         return (Quality(recall=0.0, precision=0.0, f_score=0.0, chamfer=math.inf, n_components=0, n_spurious=0,
                         closed=False, tau=tau, data_to_zero_set=math.inf, zero_set_to_data=math.inf,
                         grid_step=zs.step, reference=reference), np.zeros(0, dtype=bool))
@@ -375,11 +398,14 @@ def _measure(model, points, *, faces=None, ordered_contour=False, tau=None, tau_
     nearest = np.full(n_components, np.inf)
     np.minimum.at(nearest, samples.labels, d_zero)
     flags = nearest > tau
+    if details:
+        return None, flags, samples.points, d_zero, tau
     return (Quality(recall=recall, precision=precision, f_score=float(f_score),
                     chamfer=0.5 * (data_to_zero + zero_to_data), n_components=n_components,
                     n_spurious=int(flags.sum()), closed=zs.closed, tau=tau, data_to_zero_set=data_to_zero,
                     zero_set_to_data=zero_to_data, grid_step=zs.step, reference=reference,
-                    spurious=_spurious_components(samples, nearest, tau)), flags)
+                    spurious=_spurious_components(samples, nearest, tau),
+                    n_open=int((zs.component_open & ~flags).sum())), flags)
 
 
 def _spurious_components(samples, nearest: NDArray, tau: float) -> tuple[dict, ...]:

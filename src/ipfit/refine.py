@@ -194,7 +194,7 @@ def refine(points: ArrayLike, normals: ArrayLike, degree: int, method: str = DEF
     options = RECOMMENDED if options is None else options
     if not isinstance(options, SearchOptions):
         raise error("options", "a SearchOptions (e.g. ipfit.RECOMMENDED or ipfit.PAPER)", type(options).__name__)
-    settings = options.for_method(method)
+    settings = options.for_method(method, dim=pts.shape[1])
     delta = check_nonnegative(delta, "delta")
     gen = check_rng(rng)
     if keep_clear is not None:

@@ -1,9 +1,28 @@
 """Degree rules: which of the degrees tried :func:`ipfit.fit_adaptive` selects, and why.
 
+``"capture"`` (the default) stops when the shape is captured and selects on the geometry:
+
+* **keep going** while a degree still gains substantially in any of: smoothness (more than ε),
+  F-score or recall (more than :data:`GAIN` over the best so far), the paper's distance or the
+  mean data-to-zero-set distance (a relative drop of more than :data:`DISTANCE_GAIN`);
+* **stop** when a clean degree reaches F ≥ 1 − :data:`TOLERANCE` (captured: no higher degree
+  could then be selected, see below), or after :data:`PATIENCE` degrees in a row without a
+  substantial gain (look-ahead), or at the maximum degree;
+* **select** the lowest clean degree whose F-score is within :data:`TOLERANCE` of the best
+  clean F-score, so simple shapes keep low degrees and a degree that bulges (lower precision,
+  hence lower F) is not preferred over one that does not. With no clean degree, the highest
+  F-score (and ``success`` is False).
+
+*Clean* (:func:`is_clean`) means no spurious component that matters and no open piece near
+the data: a spurious component smaller than τ (length in 2D, τ² area in 3D; τ is the quality
+tolerance, 2 % of the box diagonal) is a speck below the measurement's resolution and does not
+count, and a zero set counts as closed when every piece near the data closes in the box.
+
 ``"paper"`` is Algorithm 1 exactly: stop as soon as the smoothness gains no more than ε and
-take the previous degree. ``"geometric"`` is the same rule restricted to degrees whose zero set
-is clean (no spurious component, closed inside the box) when one exists. Every degree also gets
-a one-line reason (selected, rejected, not needed, superseded), stored in the result.
+take the previous degree. ``"geometric"`` (the rule before ``"capture"``) is the same rule
+restricted to degrees whose zero set is strictly clean (no spurious component, closed inside
+the box) when one exists. Every degree also gets a one-line reason (selected, rejected, not
+needed, superseded), stored in the result.
 """
 
 from __future__ import annotations
@@ -13,9 +32,21 @@ from typing import Sequence
 from ._validation import error
 from .quality import Quality
 
-__all__ = ["RULES", "select_degree", "select_degree_geometric", "select", "describe_unclean", "explain", "verdict"]
+__all__ = ["RULES", "select_degree", "select_degree_geometric", "select_degree_capture", "gains", "capture_stop",
+           "is_clean", "select", "describe_unclean", "explain", "verdict", "GAIN", "DISTANCE_GAIN", "PATIENCE",
+           "TOLERANCE"]
 
-RULES = ("paper", "geometric")
+RULES = ("capture", "geometric", "paper")
+
+#: capture rule: the smallest F-score or recall gain (over the best so far) worth another degree.
+GAIN = 0.01
+#: capture rule: the smallest relative drop of the paper's distance or of the mean
+#: data-to-zero-set distance worth another degree.
+DISTANCE_GAIN = 0.25
+#: capture rule: degrees in a row without a substantial gain before the loop stops.
+PATIENCE = 2
+#: capture rule: the lowest clean degree within this F-score of the best clean one is selected.
+TOLERANCE = 0.01
 
 
 def select_degree(degrees: Sequence[int], smoothness: Sequence[float], epsilon: float = 0.01,
@@ -60,12 +91,94 @@ def select_degree_geometric(degrees: Sequence[int], smoothness: Sequence[float],
     return best, "geometric"
 
 
+def is_clean(q: Quality | None) -> bool:
+    """Clean for the capture rule: a non-empty zero set, every spurious component a speck (smaller
+    than τ in length, τ² in area) and every piece near the data closed inside the box.
+
+    >>> from ipfit.datasets import synthetic
+    >>> from ipfit.quality import quality
+    >>> shape = synthetic.circle()
+    >>> is_clean(quality(shape.polynomial, shape.points))
+    True
+    """
+    if q is None or q.n_components == 0:
+        return False
+    specks = all(c["size"] < q.tau ** (len(c["center"]) - 1) for c in q.spurious)
+    return specks and q.n_open == 0
+
+
+def _clean_f(entry) -> float | None:
+    return entry.quality.f_score if is_clean(entry.quality) else None
+
+
+def gains(entries, i: int, epsilon: float) -> list[str]:
+    """The substantial gains of ``entries[i]`` over the degrees before it, in words (capture rule).
+
+    ``entries`` are per-degree results with ``smoothness``, ``distance`` and ``quality``.
+    """
+    if i == 0:
+        return []
+    entry, before = entries[i], entries[:i]
+    out = []
+    smooth = entry.smoothness - before[-1].smoothness
+    if smooth > epsilon:
+        out.append(f"smoothness +{smooth:.3g}")
+    q = entry.quality
+    measured = [e.quality for e in before if e.quality is not None]
+    if q is not None and measured:
+        for name, key in (("F-score", "f_score"), ("recall", "recall")):
+            gain = getattr(q, key) - max(getattr(m, key) for m in measured)
+            if gain > GAIN:
+                out.append(f"{name} +{gain:.3g}")
+        previous = before[-1].quality
+        if previous is not None and previous.data_to_zero_set > 0:
+            drop = 1 - q.data_to_zero_set / previous.data_to_zero_set
+            if drop > DISTANCE_GAIN:
+                out.append(f"data-to-zero-set distance -{100 * drop:.0f}%")
+    if before[-1].distance > 0:
+        drop = 1 - entry.distance / before[-1].distance
+        if drop > DISTANCE_GAIN:
+            out.append(f"paper's distance -{100 * drop:.0f}%")
+    return out
+
+
+def capture_stop(entries, epsilon: float) -> str | None:
+    """Whether the capture rule's loop stops after the last of ``entries``: 'captured' (a clean
+    degree has F ≥ 1 − TOLERANCE, so no higher degree could be selected), 'flattened'
+    (:data:`PATIENCE` degrees in a row without a substantial gain) or None (go on)."""
+    if any(f is not None and f >= 1 - TOLERANCE for f in map(_clean_f, entries)):
+        return "captured"
+    if len(entries) > PATIENCE and not any(gains(entries, i, epsilon)
+                                           for i in range(len(entries) - PATIENCE, len(entries))):
+        return "flattened"
+    return None
+
+
+def select_degree_capture(degrees: Sequence[int], f_scores: Sequence[float], clean: Sequence[bool]) -> int:
+    """The capture rule's choice: the lowest clean degree whose F-score is within
+    :data:`TOLERANCE` of the best clean one; with no clean degree, the best F-score.
+
+    >>> select_degree_capture([2, 4, 6, 8], [0.70, 0.951, 0.958, 0.99], [True, True, True, False])
+    1
+    """
+    if len(degrees) != len(f_scores) or len(degrees) != len(clean) or not degrees:
+        raise error("f_scores", "one F-score and one clean flag per degree",
+                    f"{len(f_scores)} and {len(clean)} for {len(degrees)} degrees")
+    pool = [i for i in range(len(degrees)) if clean[i]] or list(range(len(degrees)))
+    best = max(f_scores[i] for i in pool)
+    return min((i for i in pool if f_scores[i] >= best - TOLERANCE), key=lambda i: degrees[i])
+
+
 def select(results, rule, epsilon, reason, fixed: bool) -> tuple[int, str]:
     complete = reason != "interrupted"
     if fixed and complete:
         return 0, "fixed"
     smooth = [r.smoothness for r in results]
     degs = [r.degree for r in results]
+    if rule == "capture":
+        index = select_degree_capture(degs, [r.quality.f_score for r in results],
+                                      [is_clean(r.quality) for r in results])
+        return index, reason
     if rule == "geometric":
         index, rule_reason = select_degree_geometric(degs, smooth, [r.clean for r in results],
                                                      [r.quality.f_score for r in results], epsilon, complete)
@@ -90,6 +203,8 @@ def describe_unclean(q: Quality) -> str:
 def verdict(results, i, index, message, rule, epsilon) -> str:
     """Why degree ``i`` was selected or not, in one line."""
     entry, chosen = results[i], results[index]
+    if rule == "capture":
+        return _capture_verdict(results, i, index, message, epsilon)
     if i == index:
         return "selected: " + message
     if entry.quality is not None and not entry.clean:
@@ -107,8 +222,36 @@ def verdict(results, i, index, message, rule, epsilon) -> str:
     return f"clean, but degree {chosen.degree} was selected"
 
 
-def explain(results, index, reason, epsilon) -> str:
+def _capture_verdict(results, i, index, message, epsilon) -> str:
+    entry, chosen = results[i], results[index]
+    gained = gains(results, i, epsilon)
+    tail = f" (gained: {', '.join(gained)})" if gained else (" (no substantial gain)" if i else "")
+    if i == index:
+        return "selected: " + message + tail
+    if not is_clean(entry.quality):
+        return "rejected: " + (describe_unclean(entry.quality) or "empty zero set") + tail
+    f, best = entry.quality.f_score, chosen.quality.f_score
+    if f < best - TOLERANCE:
+        return f"superseded: F-score {f:.3f} is more than {TOLERANCE:g} below degree {chosen.degree}'s {best:.3f}" + tail
+    return f"clean, F-score {f:.3f} within {TOLERANCE:g} of the best, but degree {chosen.degree} is lower" + tail
+
+
+def _capture_explain(results, index, reason) -> str:
     chosen = results[index]
+    stop = {"captured": f"the shape was captured (F-score >= {1 - TOLERANCE:g} on a clean degree)",
+            "flattened": f"{PATIENCE} degrees in a row gained nothing substantial",
+            "max_degree": "the last degree was reached",
+            "interrupted": "the run was interrupted"}[reason]
+    if not is_clean(chosen.quality):
+        return f"degree {chosen.degree}: no degree tried is clean, so the best F-score was taken; the loop stopped: {stop}"
+    return (f"degree {chosen.degree}: the lowest clean degree within {TOLERANCE:g} of the best clean F-score "
+            f"({chosen.quality.f_score:.3f}); the loop stopped: {stop}")
+
+
+def explain(results, index, reason, epsilon, rule="paper") -> str:
+    chosen = results[index]
+    if rule == "capture" and reason != "fixed":
+        return _capture_explain(results, index, reason)
     if reason == "fixed":
         return f"fixed degree {chosen.degree}"
     if reason == "interrupted":

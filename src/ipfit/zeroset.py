@@ -319,6 +319,23 @@ class ZeroSet:
         _, face_labels = np.unique(vertex_labels[f[:, 0]], return_inverse=True)
         return face_labels.astype(np.int64)
 
+    @cached_property
+    def component_open(self) -> NDArray[np.bool_]:
+        """Per component: whether it leaves the box (2D: an open curve; 3D: a piece with edges
+        that only one triangle uses, which marching cubes leaves only where the box cuts it)."""
+        if self.dim == 2:
+            return ~np.array(self.curve_closed, dtype=bool)
+        out = np.zeros(self.n_components, dtype=bool)
+        if self.is_empty:
+            return out
+        f = self.faces
+        edges = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+        codes = edges[:, 0] * np.int64(len(self.vertices)) + edges[:, 1]
+        _, inverse, counts = np.unique(codes, return_inverse=True, return_counts=True)
+        border = counts[inverse] == 1
+        out[self.component_labels[np.tile(np.arange(len(f)), 3)[border]]] = True
+        return out
+
     @property
     def n_components(self) -> int:
         """Connected pieces of the zero set inside the box."""

@@ -17,7 +17,8 @@ from .mesh import add_trim_argument, trim_for_export
 # Library parameter -> the option the user typed, for error messages.
 _OPTION_NAMES = {"max_degree": "--max-degree", "min_degree": "--degree", "rng": "--seed", "epsilon": "--epsilon",
                  "delta": "--delta", "iterations": "--iterations", "population_size": "--population",
-                 "far_term_weight": "--far-term-weight", "method": "--method", "rule": "--rule"}
+                 "far_term_weight": "--far-term-weight",
+                 "method": "--method", "rule": "--rule"}
 
 NAME = "fit"
 HELP = "fit an implicit polynomial to a point file or a bundled dataset"
@@ -68,13 +69,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def add_fit_options(parser: argparse.ArgumentParser) -> None:
     """The fit options shared by ``ipfit fit`` and ``ipfit batch`` (read back by :func:`search_settings`)."""
     from ..adaptive import fixed_degree_methods
+    from ..rules import RULES
     from ..options import (DEFAULT_DELTA, DEFAULT_EPSILON, DEFAULT_ITERATIONS, DEFAULT_METHOD, PAPER, PAPER_METHOD,
                            PAPER_RULE, RECOMMENDED)
 
     parser.add_argument("--degree", default="auto", metavar="auto|N",
                         help="'auto' for the adaptive degree (default), or a fixed even degree N")
     parser.add_argument("--max-degree", type=positive_int, metavar="G",
-                        help="largest degree the adaptive loop tries (default 10 in 2D, 8 in 3D)")
+                        help="largest degree the adaptive loop tries (default: 14 in 2D and 8 in 3D with the capture rule, "
+                        "within 2 points per coefficient; 10 in 2D and 8 in 3D with the other rules)")
     parser.add_argument("--method", default=None, choices=fixed_degree_methods(), metavar="METHOD",
                         help="fixed-degree method: " + ", ".join(fixed_degree_methods())
                         + f" (default {DEFAULT_METHOD}; 'de' and 'pso' are the paper's metaheuristics)")
@@ -86,9 +89,11 @@ def add_fit_options(parser: argparse.ArgumentParser) -> None:
                         default=None, metavar="W",
                         help="weight of the far-field term that keeps the zero set from growing spurious sheets "
                         f"(default {RECOMMENDED.far_term_weight:g}; 0 is the paper's objective)")
-    parser.add_argument("--rule", choices=("geometric", "paper"), default=None,
-                        help="degree rule: 'paper' is Algorithm 1 exactly; 'geometric' (default) also refuses a "
-                        "degree whose zero set has spurious components or leaves the box when a clean one exists")
+    parser.add_argument("--rule", choices=RULES, default=None,
+                        help="degree rule: 'capture' (default) goes on while a degree gains substantially, stops "
+                        "once the shape is captured and takes the lowest clean degree within 0.01 of the best "
+                        "F-score; 'geometric' is Algorithm 1 restricted to clean degrees; 'paper' is Algorithm 1 "
+                        "exactly")
     parser.add_argument("--paper", action="store_true",
                         help=f"the paper's exact pipeline: --method {PAPER_METHOD} --far-term-weight "
                         f"{PAPER.far_term_weight:g} --rule {PAPER_RULE}, DE in the raw coefficients started from "
@@ -170,7 +175,7 @@ def run(args: argparse.Namespace) -> int:
         normals = estimate_normals(points)
         source = "estimated"
     method, options, rule = search_settings(args)
-    resolved = options.for_method(method) if options is not None else {}
+    resolved = options.for_method(method, dim=dim) if options is not None else {}
     shown = Progress(progress_mode(args.quiet), resolved.get("iterations"), resolved.get("polish_iterations"))
     progress = stop_at_iterations(shown)
     lo = degree if degree is not None else 2

@@ -35,6 +35,10 @@ REASONS = {
                   "so the last degree was taken.",
     "geometric": "the paper's rule chose a degree whose zero set has spurious components or leaves the "
                  "box; the clean degree with the best F-score was taken instead.",
+    "captured": "the shape was captured: a clean degree reached an F-score within the tolerance of 1; the "
+                "lowest clean degree within that tolerance of the best F-score was taken.",
+    "flattened": "several degrees in a row gained nothing substantial (smoothness, F-score, recall, "
+                 "distances); the lowest clean degree within the tolerance of the best F-score was taken.",
     "interrupted": "the run was interrupted; the rule was applied to the degrees already finished.",
     "incomplete": "the run ended before the rule fired; its last degree was taken.",
 }
