@@ -2,21 +2,24 @@
 
 Usage::
 
-    python experiments/degree_rule.py [--dev ../shared/data/mpeg7-dev] [--out docs/degree-rule.md]
-                                      [--workers 2] [--from-json docs/degree-rule.json] [--limit N]
+    git worktree add --detach ../ipfit-before 69d992a   # the code before the capture rule
+    python experiments/degree_rule.py --before ../ipfit-before [--dev ../shared/data/mpeg7-dev]
+                                      [--out docs/degree-rule.md] [--from-json docs/degree-rule.json]
 
 For every contour it runs three pipelines and measures the selected degree's zero set with
 :func:`ipfit.quality.quality` (F-score, spurious components):
 
 * **paper**: the paper's exact pipeline (``ipfit fit --paper``: DE, Algorithm 1);
 * **geometric**: the recommended pipeline as it was before the capture rule (the paper's rule
-  restricted to clean degrees, search on 3,000 points, degrees up to 10);
+  restricted to clean degrees, search on 3,000 points, degrees up to 10), run by the code of
+  ``--before`` (a checkout of commit 69d992a);
 * **capture**: today's recommended pipeline (``ipfit fit``: the capture rule of
   :mod:`ipfit.rules`, degrees up to 14).
 
-Each (contour, pipeline) pair is one task in a pool of ``--workers`` processes with one BLAS
-and numba thread each, interleaved so that every pipeline sees the same machine load; the
-seconds are each fit's wall-clock time. The rows go to ``--out`` with a ``.json`` twin, from
+Two worker processes with one BLAS and numba thread each run side by side on the 2 cores:
+one with the code of ``--before`` (the geometric pipeline), one with this checkout (the paper's
+and the capture pipelines). The seconds are each fit's wall-clock time; each worker first fits
+a small shape once, so that no fit pays for numba's compilation. The rows go to ``--out`` with a ``.json`` twin, from
 which ``--from-json`` rewrites the Markdown without fitting again.
 """
 
@@ -24,7 +27,9 @@ from __future__ import annotations
 
 import argparse
 import json
+import multiprocessing
 import os
+import sys
 import platform
 import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -37,20 +42,25 @@ PIPELINES = ("paper", "geometric", "capture")
 BUNDLED = ("boot", "airplane", "butterfly")
 
 
-def _limit_threads() -> None:
+def _start_worker(src: str | None) -> None:
+    """One BLAS/numba thread per worker; ``src`` (another checkout's src/) wins over this one."""
     for name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
         os.environ[name] = "1"
+    if src is not None:
+        sys.path.insert(0, src)
+    from ipfit import fit_adaptive
+    from ipfit.datasets import synthetic
+
+    shape = synthetic.circle(60)
+    fit_adaptive(shape.points, shape.normals, max_degree=4, rng=0)  # compile the kernels once
 
 
 def _settings(pipeline: str):
-    from ipfit import PAPER, PAPER_METHOD, PAPER_RULE, RECOMMENDED
+    from ipfit import PAPER, PAPER_METHOD, PAPER_RULE
 
     if pipeline == "paper":
         return {"method": PAPER_METHOD, "options": PAPER, "rule": PAPER_RULE}
-    if pipeline == "geometric":
-        return {"options": RECOMMENDED.replace(search_points=3000, band_term_weight=0.0), "rule": "geometric",
-                "max_degree": None}
-    return {}
+    return {}  # "geometric" (the --before code's default) and "capture" (this code's default)
 
 
 def fit_one(spec: str, pipeline: str, seed: int) -> dict:
@@ -71,11 +81,13 @@ def fit_one(spec: str, pipeline: str, seed: int) -> dict:
             "degrees_tried": [d.degree for d in result.degrees]}
 
 
-def run(specs: list[str], workers: int, seed: int) -> list[dict]:
+def run(specs: list[str], before: str, seed: int) -> list[dict]:
     rows = []
-    tasks = [(spec, pipeline) for spec in specs for pipeline in PIPELINES]
-    with ProcessPoolExecutor(max_workers=workers, initializer=_limit_threads) as pool:
-        futures = {pool.submit(fit_one, spec, pipeline, seed): (spec, pipeline) for spec, pipeline in tasks}
+    context = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(1, context, initializer=_start_worker, initargs=(str(Path(before) / "src"),)) as old, \
+            ProcessPoolExecutor(1, context, initializer=_start_worker, initargs=(None,)) as new:
+        futures = [old.submit(fit_one, spec, "geometric", seed) for spec in specs]
+        futures += [new.submit(fit_one, spec, pipeline, seed) for spec in specs for pipeline in ("capture", "paper")]
         for done in as_completed(futures):
             row = done.result()
             rows.append(row)
@@ -92,7 +104,7 @@ def _summary(rows: list[dict], pipeline: str) -> dict:
             "n": len(mine)}
 
 
-def markdown(rows: list[dict], seed: int, workers: int) -> str:
+def markdown(rows: list[dict], seed: int) -> str:
     by_shape: dict[str, dict[str, dict]] = {}
     for r in rows:
         by_shape.setdefault(r["shape"], {})[r["pipeline"]] = r
@@ -102,16 +114,16 @@ def markdown(rows: list[dict], seed: int, workers: int) -> str:
         "# The degree rules on 143 contours",
         "",
         f"Generated by `python experiments/degree_rule.py` on {date.today().isoformat()} ({platform.machine()}), "
-        f"seed {seed}, {workers} worker processes with one thread each (the three pipelines interleaved, so they "
-        "share the machine's load alike). Shapes: the bundled contours (boot, airplane, butterfly) and the 140 "
+        f"seed {seed}, two worker processes side by side with one thread each (the geometric pipeline in one, with "
+        "the code of commit 69d992a; the paper's and the capture pipelines in the other). Shapes: the bundled contours (boot, airplane, butterfly) and the 140 "
         "MPEG-7 development contours (instances 5 and 15 of each class). F-score, spurious components and "
         "closedness are measured by `ipfit.quality.quality` (τ = 2% of the box diagonal) at the selected degree.",
         "",
         "* **paper**: `ipfit fit --paper` (the paper's DE and Algorithm 1, degrees up to 10);",
-        "* **geometric**: the recommended pipeline before the capture rule (Algorithm 1 restricted to clean "
-        "degrees, search on 3,000 points, degrees up to 10);",
+        "* **geometric**: the recommended pipeline before the capture rule, run by the code of commit 69d992a "
+        "(Algorithm 1 restricted to clean degrees, search on 3,000 points, degrees up to 10);",
         "* **capture**: `ipfit fit` today (the capture rule of `ipfit.rules`, degrees up to 14 within 2 points per "
-        "coefficient, search on 1,000 spread points in 2D).",
+        "coefficient, the 2D search settings of `ipfit.options.AUTO`).",
         "",
         "| pipeline | median F | 10th percentile | minimum | with spurious components | not closed | "
         "mean degree | total seconds |",
@@ -141,7 +153,8 @@ def markdown(rows: list[dict], seed: int, workers: int) -> str:
               "| shape | degree | F | precision | recall | degrees tried |", "|---|---|---|---|---|---|"]
     lines += [f"| {r['shape']} | {r['degree']} | {r['f_score']:.3f} | {r['precision']:.3f} | {r['recall']:.3f} | "
               f"{', '.join(map(str, r['degrees_tried']))} |" for r in worst]
-    lines += ["", "Regenerate: `python experiments/degree_rule.py` (about an hour on 2 cores); "
+    lines += ["", "Regenerate: `git worktree add --detach ../ipfit-before 69d992a`, then "
+              "`python experiments/degree_rule.py --before ../ipfit-before` (about 40 minutes on 2 cores); "
               "`--from-json docs/degree-rule.json` rewrites this page from the stored rows.", ""]
     return "\n".join(lines)
 
@@ -150,7 +163,8 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--dev", default="../shared/data/mpeg7-dev", help="folder of development contours (CSV)")
     parser.add_argument("--out", default="docs/degree-rule.md")
-    parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--before", default="../ipfit-before",
+                        help="a checkout of the code before the capture rule (commit 69d992a)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--limit", type=int, help="only the first N development contours (a quick look)")
     parser.add_argument("--from-json", help="rewrite the Markdown from stored rows instead of fitting")
@@ -160,9 +174,9 @@ def main(argv=None) -> int:
         rows = json.loads(Path(args.from_json).read_text(encoding="utf-8"))
     else:
         dev = sorted(Path(args.dev).glob("*.csv"))[: args.limit]
-        rows = run(list(BUNDLED) + [str(p) for p in dev], args.workers, args.seed)
+        rows = run(list(BUNDLED) + [str(p) for p in dev], args.before, args.seed)
         out.with_suffix(".json").write_text(json.dumps(rows, indent=1), encoding="utf-8")
-    out.write_text(markdown(rows, args.seed, args.workers), encoding="utf-8")
+    out.write_text(markdown(rows, args.seed), encoding="utf-8")
     print(f"wrote {out}")
     return 0
 

@@ -37,8 +37,11 @@ __all__ = ["fit_adaptive", "AdaptiveResult", "DegreeResult", "select_degree", "s
 #: L-BFGS iterations of a clean-up polish: the kept-clear samples act early (the bunny's degree-6
 #: blobs went in a 7 s polish), while a full 1000-iteration one took 26 s at degree 8.
 CLEANUP_POLISH_ITERATIONS = 200
-#: The capture rule also repairs a clean degree whose precision is below this (:func:`_repair`).
+#: The capture rule also repairs a clean degree whose precision is below PRECISION_TARGET while its
+#: recall is at least REPAIR_RECALL (:func:`_repair`): the zero set reaches the data but also
+#: bulges away from it. A degree that misses the data as well is too low, not defective.
 PRECISION_TARGET = 0.95
+REPAIR_RECALL = 0.9
 #: Maximum degree tried by default, per dimension (the paper: degrees 2 to 10 are the norm).
 DEFAULT_MAX_DEGREE = {2: 10, 3: 8}
 #: ... and with the capture rule, which stops by itself once the shape is captured and so can
@@ -262,7 +265,9 @@ def fit_adaptive(points: ArrayLike, normals: ArrayLike | None = None, *, method:
     rule : 'capture' (default), 'geometric' or 'paper' (Algorithm 1 exactly); see
         :mod:`ipfit.rules`. 'capture' and 'geometric' measure the geometric quality of every
         degree (:func:`ipfit.quality.quality`: F-score, precision, recall, spurious components,
-        closed) and try to clean a degree whose zero set is not clean before rejecting it.
+        closed) and try to clean a degree whose zero set is not clean before rejecting it
+        (with 'capture', also a clean degree that bulges away from the data: precision below
+        0.95 at a recall of at least 0.9).
         'capture' goes on while a degree still gains substantially (smoothness, F-score, recall,
         distances), stops once the shape is captured or two degrees in a row gain little, and
         selects the lowest clean degree within 0.01 of the best clean F-score. 'geometric' is
@@ -404,8 +409,9 @@ def _top_degree(n_points: int, dim: int, min_degree: int, max_degree: int | None
 
 
 def _done(entry: DegreeResult, rule: str) -> bool:
-    """Nothing left to repair: clean and, for the capture rule, precise enough."""
-    return _clean(entry, rule) and (rule != "capture" or entry.quality.precision >= PRECISION_TARGET)
+    """Nothing left to repair: clean and, for the capture rule, precise enough (or too low a degree)."""
+    q = entry.quality
+    return _clean(entry, rule) and (rule != "capture" or q.precision >= PRECISION_TARGET or q.recall < REPAIR_RECALL)
 
 
 def _better(trial: DegreeResult, best: DegreeResult, rule: str) -> bool:

@@ -163,11 +163,26 @@ def term_samples(u: NDArray[np.float64], normals: NDArray[np.float64], *, count:
     >>> len(samples), bool(np.all(np.abs(targets) > 0.15))
     (200, True)
     """
-    dim = u.shape[1]
-    candidates, targets = far_field_samples(u, normals, per_axis=per_axis or TERM_GRID[dim], **kwargs)
-    radius = float(np.linalg.norm(u - u.mean(axis=0), axis=1).mean())
-    keep = _spread(candidates, np.abs(targets) + SPREAD_OFFSET * radius, term_sample_count(len(u), dim) if count is None else int(count))
-    return candidates[keep], targets[keep]
+    u = np.ascontiguousarray(u, dtype=np.float64)
+    normals = np.ascontiguousarray(normals, dtype=np.float64)
+    key = (u.shape, u.tobytes(), normals.tobytes(), count, per_axis, tuple(sorted(kwargs.items())))
+    if key not in _TERM_SAMPLES:
+        dim = u.shape[1]
+        candidates, targets = far_field_samples(u, normals, per_axis=per_axis or TERM_GRID[dim], **kwargs)
+        radius = float(np.linalg.norm(u - u.mean(axis=0), axis=1).mean())
+        keep = _spread(candidates, np.abs(targets) + SPREAD_OFFSET * radius,
+                       term_sample_count(len(u), dim) if count is None else int(count))
+        while len(_TERM_SAMPLES) >= _CACHED_SAMPLE_SETS:
+            _TERM_SAMPLES.pop(next(iter(_TERM_SAMPLES)))
+        _TERM_SAMPLES[key] = (candidates[keep], targets[keep])
+    samples, targets = _TERM_SAMPLES[key]
+    return samples.copy(), targets.copy()
+
+
+# The samples depend on the data alone, and an adaptive fit builds the same term at every degree
+# (twice when the search is subsampled); the farthest-point selection is its costly part.
+_TERM_SAMPLES: dict = {}
+_CACHED_SAMPLE_SETS = 4
 
 
 class FarFieldTerm:
