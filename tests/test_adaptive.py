@@ -187,3 +187,21 @@ def test_a_spurious_component_is_polished_away_before_the_degree_is_rejected():
     assert np.all(cleaned.polynomial(places) < 0)  # the kept-clear places are inside, on the data's inner side
     with pytest.raises(ipfit.InvalidInputError, match="keep_clear"):
         ipfit.refine(pts, pts, 4, options=ipfit.RECOMMENDED.replace(far_term_weight=0.0), keep_clear=places)
+
+
+def test_auto_search_settings_depend_on_the_dimension():
+    for dim, points, stall, polish in ((2, 1000, 30, 300), (3, 3000, 60, 1000)):
+        resolved = ipfit.RECOMMENDED.for_method("de+polish", dim=dim)
+        assert (resolved["search_points"], resolved["stall_generations"], resolved["polish_iterations"]) == \
+            (points, stall, polish)
+    # an explicit value is the user's, in every dimension; the paper's preset has no "auto"
+    assert ipfit.SearchOptions(search_points=500).for_method("de", dim=3)["search_points"] == 500
+    assert ipfit.PAPER.for_method("de", dim=2)["search_points"] is None
+    with pytest.raises(ipfit.InvalidInputError, match="search_points: expected an integer >= 10, None or 'auto'"):
+        ipfit.SearchOptions(search_points="many")
+    # a contour of 1,500 points is searched on 1,000 of them
+    t = np.linspace(0, 2 * np.pi, 1500, endpoint=False)
+    pts = np.column_stack([2 * np.cos(t), np.sin(t)])
+    nrm = np.column_stack([np.cos(t), 2 * np.sin(t)]) / np.hypot(np.cos(t), 2 * np.sin(t))[:, None]
+    result = ipfit.refine(pts, nrm, 2, options=ipfit.RECOMMENDED.replace(iterations=2), rng=0)
+    assert result.info["search_points_used"] == 1000 and result.info["polish_iterations"] == 300

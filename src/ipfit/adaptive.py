@@ -28,7 +28,8 @@ from .options import (DEFAULT_DELTA, DEFAULT_EPSILON, DEFAULT_METHOD, DEFAULT_RU
 from .polynomial import ImplicitPolynomial
 from .quality import Quality, looks_like_contour, quality, stray_samples
 from .refine import _RENAMED as _RENAMED_SEARCH, refine
-from .rules import RULES, capture_stop, explain, is_clean, select, select_degree, select_degree_geometric, verdict
+from .rules import (RULES, TOLERANCE, capture_stop, explain, is_clean, select, select_degree, select_degree_geometric,
+                    verdict)
 
 __all__ = ["fit_adaptive", "AdaptiveResult", "DegreeResult", "select_degree", "select_degree_geometric",
            "fixed_degree_methods", "DEFAULT_MAX_DEGREE", "RULES"]
@@ -42,6 +43,9 @@ CLEANUP_POLISH_ITERATIONS = 200
 #: bulges away from it. A degree that misses the data as well is too low, not defective.
 PRECISION_TARGET = 0.95
 REPAIR_RECALL = 0.9
+#: A repair is kept only if the recall drops by at most this much: it removes stray zero set,
+#: not the zero set on the data (a sparse, thin model's fit can shrink off its thin parts).
+RECALL_KEPT = 0.02
 #: Maximum degree tried by default, per dimension (the paper: degrees 2 to 10 are the norm).
 DEFAULT_MAX_DEGREE = {2: 10, 3: 8}
 #: ... and with the capture rule, which stops by itself once the shape is captured and so can
@@ -324,8 +328,9 @@ def fit_adaptive(points: ArrayLike, normals: ArrayLike | None = None, *, method:
             progress({"event": "degree_start", "degree": degree})
         try:
             entry = _fit_degree(fitter, pts, unit, degree, delta, measured, faces, ordered_contour)
-            if measured and fitter.options is not None and not _done(entry, rule):
-                entry = _repair(entry, fitter, pts, unit, delta, faces, ordered_contour, rule)
+            if measured and fitter.options is not None and not _done(entry, rule, _best_clean_f(results, rule)):
+                entry = _repair(entry, fitter, pts, unit, delta, faces, ordered_contour, rule,
+                                _best_clean_f(results, rule))
         except KeyboardInterrupt:
             if not results:
                 raise
@@ -408,13 +413,26 @@ def _top_degree(n_points: int, dim: int, min_degree: int, max_degree: int | None
     return top
 
 
-def _done(entry: DegreeResult, rule: str) -> bool:
-    """Nothing left to repair: clean and, for the capture rule, precise enough (or too low a degree)."""
+def _best_clean_f(results, rule: str) -> float:
+    return max((r.quality.f_score for r in results if _clean(r, rule)), default=0.0)
+
+
+def _done(entry: DegreeResult, rule: str, best_f: float = 0.0) -> bool:
+    """Nothing left to repair: clean and, for the capture rule, precise enough, too low a degree
+    (it misses data) or out of the race (even a precision of 1 would leave its F-score more than
+    the rule's tolerance below the best clean degree so far)."""
     q = entry.quality
-    return _clean(entry, rule) and (rule != "capture" or q.precision >= PRECISION_TARGET or q.recall < REPAIR_RECALL)
+    if not _clean(entry, rule):
+        return False
+    if rule != "capture" or q.precision >= PRECISION_TARGET or q.recall < REPAIR_RECALL:
+        return True
+    return 2 * q.recall / (1 + q.recall) < best_f - TOLERANCE
 
 
-def _better(trial: DegreeResult, best: DegreeResult, rule: str) -> bool:
+def _better(trial: DegreeResult, best: DegreeResult, rule: str, recall: float) -> bool:
+    """A repair must not buy precision with the data: it keeps the recall (within RECALL_KEPT)."""
+    if trial.quality.recall < recall - RECALL_KEPT:
+        return False
     return (_clean(trial, rule), trial.quality.f_score) > (_clean(best, rule), best.quality.f_score)
 
 
@@ -428,7 +446,8 @@ def _stray_distance(tau: float, pts, faces, ordered_contour) -> float:
     return max(tau, 2 * float(np.median(cKDTree(pts).query(pts, k=2)[0][:, 1])))
 
 
-def _repair(entry: DegreeResult, fitter: _Fitter, pts, unit, delta, faces, ordered_contour, rule: str) -> DegreeResult:
+def _repair(entry: DegreeResult, fitter: _Fitter, pts, unit, delta, faces, ordered_contour, rule: str,
+            best_f: float = 0.0) -> DegreeResult:
     """Try to make a degree clean (and, for the capture rule, precise) before the rule judges it.
 
     Its zero set's stray parts (farther than τ from the data: spurious components, sheets,
@@ -457,11 +476,9 @@ def _repair(entry: DegreeResult, fitter: _Fitter, pts, unit, delta, faces, order
                          "f_score": trial.quality.f_score, "precision": trial.quality.precision,
                          "n_spurious": trial.quality.n_spurious, "closed": bool(trial.quality.closed),
                          "seconds": trial.seconds})
-        if _better(trial, best, rule):
-            best = trial
-        if _clean(trial, rule):
-            current = trial
-        if _done(best, rule):
+        if _better(trial, best, rule, entry.quality.recall):
+            best = current = trial
+        if _done(best, rule, best_f):
             break
     if best is not entry:
         # The degree's fit is still the method's, repaired: keep its name ("cleanup" records it).

@@ -94,6 +94,14 @@ def parse_start_fit(spec: str, name: str = "start_fits") -> tuple[str, dict[str,
     return method, params
 
 
+def _int_or_auto(value: Any, name: str, minimum: int) -> int | str:
+    if isinstance(value, str):
+        if value != "auto":
+            raise error(name, f"an integer >= {minimum}, None or 'auto'", repr(value))
+        return value
+    return check_int(value, name, minimum=minimum)
+
+
 @dataclass(frozen=True)
 class SearchOptions:
     """How :func:`ipfit.refine` searches (and :func:`ipfit.fit_adaptive` at every degree).
@@ -205,7 +213,7 @@ class SearchOptions:
             if getattr(self, name) is not None:
                 set_(name, check_positive(getattr(self, name), name))
         if self.polish_iterations is not None:
-            set_("polish_iterations", check_int(self.polish_iterations, "polish_iterations", minimum=0))
+            set_("polish_iterations", _int_or_auto(self.polish_iterations, "polish_iterations", 0))
         fits = self.start_fits
         if isinstance(fits, str) or not isinstance(fits, (tuple, list)):
             raise error("start_fits", "a tuple of linear method names", repr(fits), "Wrap one name in a tuple.")
@@ -222,10 +230,10 @@ class SearchOptions:
             dtype = repr(dtype)
         set_("dtype", check_choice(dtype, "dtype", ("float64", "float32")))
         set_("n_solutions", check_int(self.n_solutions, "n_solutions", minimum=1))
-        if self.search_points is not None and self.search_points != "auto":
-            set_("search_points", check_int(self.search_points, "search_points", minimum=10))
-        if self.stall_generations is not None and self.stall_generations != "auto":
-            set_("stall_generations", check_int(self.stall_generations, "stall_generations", minimum=1))
+        if self.search_points is not None:
+            set_("search_points", _int_or_auto(self.search_points, "search_points", 10))
+        if self.stall_generations is not None:
+            set_("stall_generations", _int_or_auto(self.stall_generations, "stall_generations", 1))
         set_("stall_tolerance", check_nonnegative(self.stall_tolerance, "stall_tolerance"))
         if not isinstance(self.warm_start, (bool, np.bool_)):
             raise error("warm_start", "True or False", repr(self.warm_start))

@@ -52,8 +52,12 @@ class Progress:
             self._iteration(event)
         elif kind == "degree_done":
             self._close_bar()
+            q = event.get("quality")
+            shape = (f", F-score {q['f_score']:.3f} (precision {q['precision']:.3f}, recall {q['recall']:.3f})"
+                     if q else "")
+            repairs = f", {len(event['cleanup'])} repair polish(es)" if event.get("cleanup") else ""
             self._line(f"degree {event['degree']}: distance {event['distance']:.5f}, smoothness "
-                       f"{event['smoothness']:.4f}, dissimilarity {event['dissimilarity']:.5f} "
+                       f"{event['smoothness']:.4f}, dissimilarity {event['dissimilarity']:.5f}{shape}{repairs} "
                        f"({event['seconds']:.1f} s)")
 
     def close(self) -> None:
