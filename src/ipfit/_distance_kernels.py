@@ -61,12 +61,13 @@ def _triangle_d2(p, a, b, c):  # pragma: no cover - compiled
 def nearest_candidates(query, idx, n, elements, a, b, c, upper, triangles):  # pragma: no cover - compiled
     """Distance from each query to the nearest of its candidate elements, capped at ``upper``.
 
-    ``idx`` (m, k) are sample indices sorted by distance (``n`` = no sample within the band);
+    ``idx`` (m, k) are sample indices sorted by distance (``n`` = no sample within the bound);
     a candidate is the element (segment a–b or triangle a–b–c) a sample lies on, each one
     computed once per query even when several of its samples are among the k.
     """
     m, k = idx.shape
     out = np.empty(m)
+    seen = np.full(a.shape[0], -1, dtype=np.int64)  # the last query each element was computed for
     for i in range(m):
         best = upper[i] * upper[i]
         for j in range(k):
@@ -74,13 +75,9 @@ def nearest_candidates(query, idx, n, elements, a, b, c, upper, triangles):  # p
             if s >= n:
                 break
             e = elements[s]
-            seen = False
-            for jj in range(j):
-                if elements[idx[i, jj]] == e:
-                    seen = True
-                    break
-            if seen:
+            if seen[e] == i:
                 continue
+            seen[e] = i
             if triangles:
                 d2 = _triangle_d2(query[i], a[e], b[e], c[e])
             else:

@@ -147,6 +147,8 @@ class _Target:
     there needs no sub-τ precision.
     """
 
+    _ENTRIES = 1 << 22  # neighbours per k-d tree call when completing candidates
+
     def __init__(self, samples: Samples, kind: str, corners: tuple[NDArray, ...] = (), *, tau: float = np.inf,
                  far_budget: int = 5000, k: int = 6) -> None:
         from scipy.spatial import cKDTree
@@ -212,9 +214,12 @@ class _Target:
         todo = rows[(out[rows] > self.tau) & (d[:, -1] <= bound)] if self.kind != "points" else rows[:0]
         while todo.size and k < n:
             k = min(4 * k, n)
-            d, nearest = self._nearest(query[todo], k, bound * (1 + 1e-12))
-            out[todo] = np.minimum(out[todo], nearest)
-            todo = todo[(out[todo] > self.tau) & (d[:, -1] <= bound)]
+            still = []
+            for block in np.array_split(todo, -(-todo.size * k // self._ENTRIES)):  # bounded memory
+                d, nearest = self._nearest(query[block], k, bound * (1 + 1e-12))
+                out[block] = np.minimum(out[block], nearest)
+                still.append(block[(out[block] > self.tau) & (d[:, -1] <= bound)])
+            todo = np.concatenate(still)
         far = np.flatnonzero(~np.isfinite(out))
         if far.size:
             probe = far[:: -(-far.size // self.far_budget)]
