@@ -241,9 +241,10 @@ def _piece_radius(samples: Samples, kind: str, corners: tuple[NDArray, ...]) -> 
     ends = [c[used] for c in corners]
     if kind == "segments":  # midpoints of `count` equal pieces
         return float(np.max(np.linalg.norm(ends[1] - ends[0], axis=1) / count[used]) / 2)
-    # centroids of k² similar triangles: within 2/3 of a median, itself at most the longest edge
-    longest = np.max([np.linalg.norm(ends[i] - ends[i - 1], axis=1) for i in range(3)], axis=0)
-    return float(np.max(longest / np.sqrt(count[used])) * 2 / 3)
+    # centroids of k² similar triangles: a point of one is within 2/3 of its longest median
+    sq = [np.einsum("ij,ij->i", e, e) for e in (ends[1] - ends[0], ends[2] - ends[1], ends[0] - ends[2])]
+    median2 = np.max([2 * (sq[0] + sq[1] + sq[2]) - 3 * x for x in sq], axis=0) / 4
+    return float(np.max(np.sqrt(median2 / count[used])) * 2 / 3)
 
 
 def _points_target(pts: NDArray, tau: float) -> _Target:
@@ -283,7 +284,7 @@ def quality(model: ImplicitPolynomial | ZeroSet, points: ArrayLike, *, faces: Ar
     points : (N, dim) data points.
     faces : (F, 3) int array, optional
         Triangles over ``points`` when the data is a mesh: precision is then measured
-        against dense samples of the faces.
+        against the faces.
     ordered_contour : bool
         2D: the points are in order along a contour (closed unless the last gap is far
         longer than the others); precision is measured against the polyline.
