@@ -154,15 +154,12 @@ def trim_zero_set(zero_set: ZeroSet, points: ArrayLike, distance: float | None =
             raise error("faces", "no faces for 2D data", "faces", "Drop faces; 2D data is trimmed to its points.")
         face_array = as_faces(faces, len(pts), 3)
         face_array = face_array if len(face_array) else None
-    # Exact distances up to the band decide "within distance"; beyond it, values only need to
-    # stay above it, which the target guarantees.
-    spacing = distance / 3
-    band = 2 * distance + 2 * spacing
+    # The target decides "within distance" exactly (its tolerance); samples only find candidates.
     if face_array is not None:
-        samples = sample_triangles(pts, face_array, spacing, max_samples=DEFAULT_MAX_SAMPLES)
-        target, reference = _mesh_target(pts, face_array, samples, band), "faces"
+        samples = sample_triangles(pts, face_array, distance, max_samples=DEFAULT_MAX_SAMPLES)
+        target, reference = _mesh_target(pts, face_array, samples, distance), "faces"
     else:
-        target, reference = _points_target(pts, band), "points"
+        target, reference = _points_target(pts, distance), "points"
     if zero_set.is_empty:
         return replace(zero_set, trim=_record(distance, 0.0, 0.0, 0, reference, zero_set.dim))
     if zero_set.dim == 3:
