@@ -122,7 +122,8 @@ def markdown(rows: list[dict], iterations: int) -> str:
         "",
         "The default (recommended) pipeline: `fit_adaptive(points, normals)` = `ipfit.RECOMMENDED`: DE + "
         "L-BFGS polish on the paper's distance plus the far-field term, started from every linear fit, the "
-        "search on a spread subsample of 3000 points and stopped when it stalls, and the geometric degree rule.",
+        "search on a spread subsample (1,000 points in 2D, 3,000 in 3D) and stopped when it stalls, and the capture "
+        "degree rule with its repairs of stray zero set (README, docs/degree-rule.md).",
         "",
         "| shape | N | degree (default / paper) | 3L | paper's DE | default | paper pipeline | seconds default | "
         "seconds paper pipeline | ratio |",
