@@ -160,3 +160,31 @@ def test_a_sparse_closed_shape_grows_no_lobe(seed):
     assert q_after.precision >= 0.96 and is_clean(q_after)  # and fixed
     assert q_after.recall >= 0.98
     assert any(a["target"] == "precision" for a in after.degrees[0].cleanup)
+
+
+def test_a_repair_never_buys_precision_with_the_data():
+    # adaptive._better: a repaired fit replaces the degree's only if it keeps the recall (within
+    # RECALL_KEPT) and is cleaner or has a higher F-score.
+    from ipfit.adaptive import RECALL_KEPT, _better
+
+    def entry(f, recall, spurious=()):
+        return SimpleNamespace(quality=_quality(f, recall=recall, spurious=spurious))
+
+    original = entry(0.74, recall=0.93)
+    shrunk = entry(0.75, recall=0.60)           # precise because it left the thin parts of the data
+    assert not _better(shrunk, original, "capture", original.quality.recall)
+    tighter = entry(0.80, recall=0.93 - RECALL_KEPT / 2)
+    assert _better(tighter, original, "capture", original.quality.recall)
+    loop = {"size": 1.0, "share": 0.1, "center": [0, 0], "distance": 1.0}
+    assert _better(entry(0.70, recall=0.93), entry(0.90, recall=0.93, spurious=[loop]), "capture", 0.93)
+
+
+def test_a_degree_out_of_the_race_is_not_repaired():
+    # even a precision of 1 could not bring an F-score within the tolerance of the best one so far
+    from ipfit.adaptive import _done
+
+    low = SimpleNamespace(quality=_quality(0.80, recall=0.90), clean=True)
+    low.quality = Quality(**{**low.quality.__dict__, "precision": 0.7})
+    assert _done(low, "capture", best_f=0.99)        # 2·0.9/1.9 = 0.947 < 0.98
+    assert not _done(low, "capture", best_f=0.90)    # it could still win: repair it
+    assert _done(low, "geometric", best_f=0.90)      # the geometric rule repairs unclean degrees only

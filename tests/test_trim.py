@@ -270,3 +270,21 @@ def test_mesh_trims_2d_curves(tmp_path, capsys):
     rows = np.loadtxt(tmp_path / "c.csv", delimiter=",", comments="#", skiprows=3)
     assert cKDTree(right).query(rows[:, 1:])[0].max() <= 0.1
     assert Path(tmp_path / "c.csv").exists()
+
+
+def test_the_figure_draws_the_trimmed_zero_set(fitted_cup):
+    # plot_result(trim=...) draws what `ipfit fit --trim` exports: fewer triangles, all near the data
+    from matplotlib.collections import PolyCollection
+
+    from ipfit.plotting import plot_result
+
+    points, poly, _ = fitted_cup
+
+    def drawn(fig):
+        ax = fig.axes[0]
+        return sum(len(c.get_facecolor()) for c in ax.collections if isinstance(c, PolyCollection))  # one per face
+
+    whole = drawn(plot_result(poly, points))
+    trimmed_zs = ipfit.extract_zero_set(poly, points=points).trimmed(points)
+    trimmed = drawn(plot_result(poly, points, trim=trimmed_zs.trim.distance))
+    assert 0 < trimmed < whole

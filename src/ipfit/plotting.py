@@ -417,7 +417,8 @@ def _panels(view: ResultView) -> list[tuple[str, str, Any]]:
 def plot_result(result, points: ArrayLike | None = None, path: str | os.PathLike | None = None, *,
                 faces: ArrayLike | None = None, title: str | None = None, margin: float = 0.25,
                 resolution: int | None = None, max_faces: int = 15000, view: tuple[float, float] = (20.0, -60.0),
-                up: str = "z", ncols: int = 4, dpi: int = 110, mark_spurious: bool = True):
+                up: str = "z", ncols: int = 4, dpi: int = 110, mark_spurious: bool = True,
+                trim: float | None = None):
     """A paper-style figure of a result (Figs. 8–13), optionally saved to ``path``.
 
     Panels, lettered (a), (b), ...: the zero set of every degree tried with the data (in
@@ -439,6 +440,9 @@ def plot_result(result, points: ArrayLike | None = None, path: str | os.PathLike
     resolution : grid nodes along the box's longest side (default 400 in 2D, 72 in 3D).
     view, up : 3D camera (elevation, azimuth) and vertical axis, see :func:`plot_surface`.
     mark_spurious : colour the spurious components (needs ``points``).
+    trim : draw only the parts of each zero set within this distance of the data
+        (:meth:`ipfit.zeroset.ZeroSet.trimmed`, as ``ipfit fit --trim`` exports them; needs
+        ``points``); the polynomial is unchanged.
 
     Returns
     -------
@@ -471,6 +475,8 @@ def plot_result(result, points: ArrayLike | None = None, path: str | os.PathLike
         ax = fig.add_subplot(nrows, ncols, index + 1, projection="3d" if dim == 3 and kind == "fit" else None)
         if kind == "fit":
             zs = _coarser(extract_zero_set(payload, bounds=box, resolution=resolution), max_faces)
+            if trim is not None and pts is not None:
+                zs = zs.trimmed(pts, trim, faces=face_array)
             flags = None
             if mark_spurious and pts is not None and not zs.is_empty:
                 flags = spurious_components(zs, pts, faces=face_array, ordered_contour=ordered)
