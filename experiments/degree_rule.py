@@ -16,43 +16,26 @@ For every contour it runs three pipelines and measures the selected degree's zer
 * **capture**: today's recommended pipeline (``ipfit fit``: the capture rule of
   :mod:`ipfit.rules`, degrees up to 14).
 
-Two worker processes with one BLAS and numba thread each run side by side on the 2 cores:
-one with the code of ``--before`` (the geometric pipeline), one with this checkout (the paper's
-and the capture pipelines). The seconds are each fit's wall-clock time; each worker first fits
-a small shape once, so that no fit pays for numba's compilation. The rows go to ``--out`` with a ``.json`` twin, from
-which ``--from-json`` rewrites the Markdown without fitting again.
+Two worker processes run side by side (``experiments/_versions.py``): one with the code of
+``--before`` (the geometric pipeline), one with this checkout (the paper's and the capture
+pipelines). The seconds are each fit's wall-clock time. The rows go to ``--out`` with a
+``.json`` twin, from which ``--from-json`` rewrites the Markdown without fitting again.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import multiprocessing
-import os
-import sys
 import platform
 import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from datetime import date
 from pathlib import Path
 
 import numpy as np
+from _versions import run_side_by_side
 
 PIPELINES = ("paper", "geometric", "capture")
 BUNDLED = ("boot", "airplane", "butterfly")
-
-
-def _start_worker(src: str | None) -> None:
-    """One BLAS/numba thread per worker; ``src`` (another checkout's src/) wins over this one."""
-    for name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
-        os.environ[name] = "1"
-    if src is not None:
-        sys.path.insert(0, src)
-    from ipfit import fit_adaptive
-    from ipfit.datasets import synthetic
-
-    shape = synthetic.circle(60)
-    fit_adaptive(shape.points, shape.normals, max_degree=4, rng=0)  # compile the kernels once
 
 
 def _settings(pipeline: str):
@@ -82,17 +65,8 @@ def fit_one(spec: str, pipeline: str, seed: int) -> dict:
 
 
 def run(specs: list[str], before: str, seed: int) -> list[dict]:
-    rows = []
-    context = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(1, context, initializer=_start_worker, initargs=(str(Path(before) / "src"),)) as old, \
-            ProcessPoolExecutor(1, context, initializer=_start_worker, initargs=(None,)) as new:
-        futures = [old.submit(fit_one, spec, "geometric", seed) for spec in specs]
-        futures += [new.submit(fit_one, spec, pipeline, seed) for spec in specs for pipeline in ("capture", "paper")]
-        for done in as_completed(futures):
-            row = done.result()
-            rows.append(row)
-            print(json.dumps(row), flush=True)
-    return rows
+    return run_side_by_side(fit_one, before, [(spec, "geometric", seed) for spec in specs],
+                            [(spec, pipeline, seed) for spec in specs for pipeline in ("capture", "paper")])
 
 
 def _summary(rows: list[dict], pipeline: str) -> dict:

@@ -14,39 +14,24 @@ degrees that bulge), and records per degree and at the selected degree the F-sco
 ``ipfit.quality.quality`` against the meshes' faces (τ = 2% of the box diagonal). Figures with
 the data overlaid go to ``docs/quality-3d/``.
 
-Two worker processes with one BLAS and numba thread each run side by side (one per code
-version); each first fits a small shape once, so that no fit pays for numba's compilation.
+Two worker processes run side by side, one per code version (``experiments/_versions.py``).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import multiprocessing
 import os
 import platform
-import sys
 import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from datetime import date
 from pathlib import Path
 
 import numpy as np
+from _versions import run_side_by_side
 
 BUNDLED = ("bunny", "apple", "duck")
 PIPELINES = ("before", "capture")
-
-
-def _start_worker(src: str | None) -> None:
-    for name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
-        os.environ[name] = "1"
-    if src is not None:
-        sys.path.insert(0, src)
-    from ipfit import fit_adaptive
-    from ipfit.datasets import synthetic
-
-    shape = synthetic.sphere(200)
-    fit_adaptive(shape.points, shape.normals, max_degree=4, rng=0)
 
 
 def fit_one(spec: str, pipeline: str, seed: int) -> dict:
@@ -69,17 +54,8 @@ def fit_one(spec: str, pipeline: str, seed: int) -> dict:
 
 
 def run(specs: list[str], before: str, seed: int) -> list[dict]:
-    rows = []
-    context = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(1, context, initializer=_start_worker, initargs=(str(Path(before) / "src"),)) as old, \
-            ProcessPoolExecutor(1, context, initializer=_start_worker, initargs=(None,)) as new:
-        futures = [old.submit(fit_one, spec, "before", seed) for spec in specs]
-        futures += [new.submit(fit_one, spec, "capture", seed) for spec in specs]
-        for done in as_completed(futures):
-            row = done.result()
-            rows.append(row)
-            print(json.dumps({k: v for k, v in row.items() if k not in ("polynomial", "degrees")}), flush=True)
-    return rows
+    return run_side_by_side(fit_one, before, [(spec, "before", seed) for spec in specs],
+                            [(spec, "capture", seed) for spec in specs])
 
 
 def figures(rows: list[dict], specs: dict[str, str], folder: Path) -> None:

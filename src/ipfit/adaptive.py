@@ -430,8 +430,9 @@ def _done(entry: DegreeResult, rule: str, best_f: float = 0.0) -> bool:
 
 
 def _better(trial: DegreeResult, best: DegreeResult, rule: str, recall: float) -> bool:
-    """A repair must not buy precision with the data: it keeps the recall (within RECALL_KEPT)."""
-    if trial.quality.recall < recall - RECALL_KEPT:
+    """Cleaner first, then a higher F-score; but a repair of a clean degree must not buy precision
+    with the data: it keeps the recall (within RECALL_KEPT)."""
+    if _clean(best, rule) and trial.quality.recall < recall - RECALL_KEPT:
         return False
     return (_clean(trial, rule), trial.quality.f_score) > (_clean(best, rule), best.quality.f_score)
 
@@ -462,8 +463,9 @@ def _repair(entry: DegreeResult, fitter: _Fitter, pts, unit, delta, faces, order
     best = current = entry
     places, attempts, nfev = [], [], entry.nfev
     for weight in fitter.options.cleanup_weights:
+        # Spurious components first (their samples alone, as many as a bulge would otherwise take).
         found = stray_samples(current.polynomial, pts, faces=faces, ordered_contour=bool(ordered_contour),
-                              distance=stray)
+                              distance=stray, spurious_only=current.quality.n_spurious > 0)
         if len(found):
             places.append(found)
         if not places:

@@ -327,10 +327,11 @@ def spurious_components(zero_set: ZeroSet, points: ArrayLike, **options) -> NDAr
 
 
 def stray_samples(model: ImplicitPolynomial | ZeroSet, points: ArrayLike, *, most: int = 400,
-                  distance: float | None = None, **options) -> NDArray[np.float64]:
+                  distance: float | None = None, spurious_only: bool = False, **options) -> NDArray[np.float64]:
     """Up to ``most`` samples (evenly taken) of the zero set farther than ``distance`` (default τ)
     from the data's shape: the part that costs precision (spurious components, bulges, sheets).
-    ``options`` are those of :func:`quality`.
+    With ``spurious_only``, only samples of the spurious components (no part within τ of the
+    data). ``options`` are those of :func:`quality`.
 
     >>> from ipfit.datasets import synthetic
     >>> two = synthetic.from_terms(2, 4, {(4, 0): 1, (2, 0): -2, (0, 2): 1, (0, 0): 0.75})
@@ -339,8 +340,11 @@ def stray_samples(model: ImplicitPolynomial | ZeroSet, points: ArrayLike, *, mos
     >>> bool(np.all(stray_samples(zs, right)[:, 0] < 0))
     True
     """
-    _, _, samples, d_zero, tau = _measure(model, points, **options, details=True)
-    far = samples[d_zero > (tau if distance is None else check_positive(distance, "distance"))]
+    _, flags, samples, d_zero, tau = _measure(model, points, **options, details=True)
+    far = d_zero > (tau if distance is None else check_positive(distance, "distance"))
+    if spurious_only:
+        far &= flags[samples.labels] if len(flags) else False
+    far = samples.points[far]
     return far[:: max(1, -(-len(far) // check_int(most, "most", minimum=1)))]
 
 
@@ -389,7 +393,8 @@ def _measure(model, points, *, faces=None, ordered_contour=False, tau=None, tau_
     n_components = zs.n_components
     if zs.is_empty:
         if details:
-            return None, np.zeros(0, dtype=bool), np.empty((0, dim)), np.empty(0), tau
+            return None, np.zeros(0, dtype=bool), Samples(np.empty((0, dim)), np.empty(0), np.empty(0, dtype=np.int64),
+                                                          np.empty(0, dtype=np.int64)), np.empty(0), tau
         return (Quality(recall=0.0, precision=0.0, f_score=0.0, chamfer=math.inf, n_components=0, n_spurious=0,
                         closed=False, tau=tau, data_to_zero_set=math.inf, zero_set_to_data=math.inf,
                         grid_step=zs.step, reference=reference), np.zeros(0, dtype=bool))
@@ -417,7 +422,7 @@ def _measure(model, points, *, faces=None, ordered_contour=False, tau=None, tau_
     np.minimum.at(nearest, samples.labels, d_zero)
     flags = nearest > tau
     if details:
-        return None, flags, samples.points, d_zero, tau
+        return None, flags, samples, d_zero, tau
     return (Quality(recall=recall, precision=precision, f_score=float(f_score),
                     chamfer=0.5 * (data_to_zero + zero_to_data), n_components=n_components,
                     n_spurious=int(flags.sum()), closed=zs.closed, tau=tau, data_to_zero_set=data_to_zero,

@@ -1,0 +1,44 @@
+"""Two versions of ipfit side by side: this checkout and an earlier one (``--before``).
+
+Each runs in its own worker process with one BLAS and numba thread, so that the two share the
+2 cores alike; each worker first fits a small shape once, so that no timed fit pays for numba's
+compilation.
+"""
+
+from __future__ import annotations
+
+import json
+import multiprocessing
+import os
+import sys
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from pathlib import Path
+from typing import Callable
+
+
+def start_worker(src: str | None) -> None:
+    """Runs in each worker: one thread, ``src`` (another checkout's src/) first on the path."""
+    for name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
+        os.environ[name] = "1"
+    if src is not None:
+        sys.path.insert(0, src)
+    from ipfit import fit_adaptive
+    from ipfit.datasets import synthetic
+
+    for shape in (synthetic.circle(60), synthetic.sphere(200)):
+        fit_adaptive(shape.points, shape.normals, max_degree=4, rng=0)
+
+
+def run_side_by_side(task: Callable, before: str, old_jobs: list[tuple], new_jobs: list[tuple]) -> list[dict]:
+    """``task(*job)`` for the old jobs with the code of ``before`` and the new ones with this
+    checkout, the two workers side by side; returns the rows as they finish (each also printed)."""
+    rows = []
+    context = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(1, context, initializer=start_worker, initargs=(str(Path(before) / "src"),)) as old, \
+            ProcessPoolExecutor(1, context, initializer=start_worker, initargs=(None,)) as new:
+        futures = [old.submit(task, *job) for job in old_jobs] + [new.submit(task, *job) for job in new_jobs]
+        for done in as_completed(futures):
+            row = done.result()
+            rows.append(row)
+            print(json.dumps({k: v for k, v in row.items() if k not in ("polynomial", "degrees")}), flush=True)
+    return rows
