@@ -163,9 +163,9 @@ def test_a_sparse_closed_shape_grows_no_lobe(seed):
 
 
 def test_a_repair_never_buys_precision_with_the_data():
-    # adaptive._better: a repaired fit replaces the degree's only if it keeps the recall (within
+    # repair._better: a repaired fit replaces the degree's only if it keeps the recall (within
     # RECALL_KEPT) and is cleaner or has a higher F-score.
-    from ipfit.adaptive import RECALL_KEPT, _better
+    from ipfit.repair import RECALL_KEPT, _better
 
     def entry(f, recall, spurious=()):
         return SimpleNamespace(quality=_quality(f, recall=recall, spurious=spurious))
@@ -181,10 +181,10 @@ def test_a_repair_never_buys_precision_with_the_data():
 
 def test_a_degree_out_of_the_race_is_not_repaired():
     # even a precision of 1 could not bring an F-score within the tolerance of the best one so far
-    from ipfit.adaptive import _done
+    from ipfit.repair import is_done
 
     low = SimpleNamespace(quality=_quality(0.80, recall=0.90), clean=True)
     low.quality = Quality(**{**low.quality.__dict__, "precision": 0.7})
-    assert _done(low, "capture", best_f=0.99)        # 2·0.9/1.9 = 0.947 < 0.98
-    assert not _done(low, "capture", best_f=0.90)    # it could still win: repair it
-    assert _done(low, "geometric", best_f=0.90)      # the geometric rule repairs unclean degrees only
+    assert is_done(low, "capture", best_f=0.99)        # 2·0.9/1.9 = 0.947 < 0.98
+    assert not is_done(low, "capture", best_f=0.90)    # it could still win: repair it
+    assert is_done(low, "geometric", best_f=0.90)      # the geometric rule repairs unclean degrees only

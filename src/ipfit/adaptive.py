@@ -26,26 +26,15 @@ from .objective import Measures, measures as compute_measures
 from .options import (DEFAULT_DELTA, DEFAULT_EPSILON, DEFAULT_METHOD, DEFAULT_RULE, RECOMMENDED, REFINE_METHODS,
                       SearchOptions, renamed_keywords)
 from .polynomial import ImplicitPolynomial
-from .quality import Quality, looks_like_contour, quality, stray_samples
+from .quality import Quality, looks_like_contour, quality
 from .refine import _RENAMED as _RENAMED_SEARCH, refine
-from .rules import (RULES, TOLERANCE, capture_stop, explain, is_clean, select, select_degree, select_degree_geometric,
-                    verdict)
+from .repair import best_clean_f, clean, is_done, repair
+from .rules import RULES, capture_stop, explain, select, select_degree, select_degree_geometric, verdict
 
 __all__ = ["fit_adaptive", "AdaptiveResult", "DegreeResult", "select_degree", "select_degree_geometric",
            "fixed_degree_methods", "DEFAULT_MAX_DEGREE", "RULES"]
 
 
-#: L-BFGS iterations of a clean-up polish: the kept-clear samples act early (the bunny's degree-6
-#: blobs went in a 7 s polish), while a full 1000-iteration one took 26 s at degree 8.
-CLEANUP_POLISH_ITERATIONS = 200
-#: The capture rule also repairs a clean degree whose precision is below PRECISION_TARGET while its
-#: recall is at least REPAIR_RECALL (:func:`_repair`): the zero set reaches the data but also
-#: bulges away from it. A degree that misses the data as well is too low, not defective.
-PRECISION_TARGET = 0.95
-REPAIR_RECALL = 0.9
-#: A repair is kept only if the recall drops by at most this much: it removes stray zero set,
-#: not the zero set on the data (a sparse, thin model's fit can shrink off its thin parts).
-RECALL_KEPT = 0.02
 #: Maximum degree tried by default, per dimension (the paper: degrees 2 to 10 are the norm).
 DEFAULT_MAX_DEGREE = {2: 10, 3: 8}
 #: ... and with the capture rule, which stops by itself once the shape is captured and so can
@@ -328,9 +317,14 @@ def fit_adaptive(points: ArrayLike, normals: ArrayLike | None = None, *, method:
             progress({"event": "degree_start", "degree": degree})
         try:
             entry = _fit_degree(fitter, pts, unit, degree, delta, measured, faces, ordered_contour)
-            if measured and fitter.options is not None and not _done(entry, rule, _best_clean_f(results, rule)):
-                entry = _repair(entry, fitter, pts, unit, delta, faces, ordered_contour, rule,
-                                _best_clean_f(results, rule))
+            best_f = best_clean_f(results, rule)
+            if measured and fitter.options is not None and not is_done(entry, rule, best_f):
+                def refit(options, start, keep_clear, degree=degree):
+                    return _fit_degree(fitter, pts, unit, degree, delta, True, faces, ordered_contour,
+                                       options=options, extra_starts=[start], method="polish",
+                                       keep_clear=keep_clear)
+
+                entry = repair(entry, refit, fitter.options, pts, faces, ordered_contour, rule, best_f)
         except KeyboardInterrupt:
             if not results:
                 raise
@@ -355,8 +349,8 @@ def fit_adaptive(points: ArrayLike, normals: ArrayLike | None = None, *, method:
                for i, r in enumerate(results)]
     chosen = results[index]
     name = method if isinstance(method, str) else getattr(method, "__name__", "custom")
-    success = reason != "interrupted" and (rule == "paper" or _clean(chosen, rule)
-                                           or not any(_clean(r, rule) for r in results))
+    success = reason != "interrupted" and (rule == "paper" or clean(chosen, rule)
+                                           or not any(clean(r, rule) for r in results))
     return AdaptiveResult(
         x=chosen.x, fun=chosen.fun, nit=len(results), nfev=sum(r.nfev for r in results), success=success,
         message=message, polynomial=chosen.polynomial,
@@ -388,10 +382,6 @@ def check_settings(method, options, rule, epsilon, delta, min_degree, max_degree
     return method, options, rule, epsilon, delta, min_degree
 
 
-def _clean(entry: "DegreeResult", rule: str) -> bool:
-    return is_clean(entry.quality) if rule == "capture" else entry.clean
-
-
 def _top_degree(n_points: int, dim: int, min_degree: int, max_degree: int | None, rule: str = "paper") -> int:
     if max_degree is None:
         top = (CAPTURE_MAX_DEGREE if rule == "capture" else DEFAULT_MAX_DEGREE)[dim]
@@ -411,83 +401,6 @@ def _top_degree(n_points: int, dim: int, min_degree: int, max_degree: int | None
                         "Lower the maximum degree or pass more points.")
         top = largest_possible
     return top
-
-
-def _best_clean_f(results, rule: str) -> float:
-    return max((r.quality.f_score for r in results if _clean(r, rule)), default=0.0)
-
-
-def _done(entry: DegreeResult, rule: str, best_f: float = 0.0) -> bool:
-    """Nothing left to repair: clean and, for the capture rule, precise enough, too low a degree
-    (it misses data) or out of the race (even a precision of 1 would leave its F-score more than
-    the rule's tolerance below the best clean degree so far)."""
-    q = entry.quality
-    if not _clean(entry, rule):
-        return False
-    if rule != "capture" or q.precision >= PRECISION_TARGET or q.recall < REPAIR_RECALL:
-        return True
-    return 2 * q.recall / (1 + q.recall) < best_f - TOLERANCE
-
-
-def _better(trial: DegreeResult, best: DegreeResult, rule: str, recall: float) -> bool:
-    """Cleaner first, then a higher F-score; but a repair of a clean degree must not buy precision
-    with the data: it keeps the recall (within RECALL_KEPT)."""
-    if _clean(best, rule) and trial.quality.recall < recall - RECALL_KEPT:
-        return False
-    return (_clean(trial, rule), trial.quality.f_score) > (_clean(best, rule), best.quality.f_score)
-
-
-def _stray_distance(tau: float, pts, faces, ordered_contour) -> float:
-    if faces is not None or ordered_contour:
-        return tau
-    # A bare cloud: between its points even a perfect surface is up to about a spacing away from
-    # the nearest one; only what lies beyond that is stray.
-    from scipy.spatial import cKDTree
-
-    return max(tau, 2 * float(np.median(cKDTree(pts).query(pts, k=2)[0][:, 1])))
-
-
-def _repair(entry: DegreeResult, fitter: _Fitter, pts, unit, delta, faces, ordered_contour, rule: str,
-            best_f: float = 0.0) -> DegreeResult:
-    """Try to make a degree clean (and, for the capture rule, precise) before the rule judges it.
-
-    Its zero set's stray parts (farther than τ from the data: spurious components, sheets,
-    bulges and lobes attached to the shape) are sampled and held clear by the far-field term in
-    an L-BFGS polish from its fit, at each of the options' clean-up weights in turn, the places
-    accumulating over rounds. The best result (clean first, then the F-score) replaces the fit;
-    every round is recorded in ``cleanup``.
-    """
-    polish = min(CLEANUP_POLISH_ITERATIONS, fitter.options.for_method("polish", dim=pts.shape[1])["polish_iterations"])
-    stray = _stray_distance(entry.quality.tau, pts, faces, ordered_contour)
-    target = "precision" if _clean(entry, rule) else "spurious components"
-    best = current = entry
-    places, attempts, nfev = [], [], entry.nfev
-    for weight in fitter.options.cleanup_weights:
-        # Spurious components first (their samples alone, as many as a bulge would otherwise take).
-        found = stray_samples(current.polynomial, pts, faces=faces, ordered_contour=bool(ordered_contour),
-                              distance=stray, spurious_only=current.quality.n_spurious > 0)
-        if len(found):
-            places.append(found)
-        if not places:
-            break
-        options = fitter.options.replace(far_term_weight=weight, start_fits=(), polish_iterations=polish)
-        trial = _fit_degree(fitter, pts, unit, entry.degree, delta, True, faces, ordered_contour, options=options,
-                            extra_starts=[current.x], method="polish", keep_clear=np.concatenate(places))
-        nfev += trial.nfev
-        attempts.append({"target": target, "far_term_weight": weight, "clean": _clean(trial, rule),
-                         "f_score": trial.quality.f_score, "precision": trial.quality.precision,
-                         "n_spurious": trial.quality.n_spurious, "closed": bool(trial.quality.closed),
-                         "seconds": trial.seconds})
-        if _better(trial, best, rule, entry.quality.recall):
-            best = current = trial
-        if _done(best, rule, best_f):
-            break
-    if best is not entry:
-        # The degree's fit is still the method's, repaired: keep its name ("cleanup" records it).
-        best = dataclasses.replace(best, polynomial=best.polynomial.with_coefficients(
-            best.polynomial.coefficients, method=entry.polynomial.method))
-    return dataclasses.replace(best, cleanup=tuple(attempts), seconds=entry.seconds + sum(a["seconds"] for a in attempts),
-                               nfev=nfev)
 
 
 def _fit_degree(fitter: _Fitter, pts, unit, degree, delta, measured: bool, faces, ordered_contour, *, options=None,

@@ -1,0 +1,122 @@
+"""Repairs of one degree's fit before a degree rule judges it.
+
+A degree whose zero set is not clean (spurious components, open sheets), or, for the capture
+rule, is clean but bulges away from the data (precision below :data:`PRECISION_TARGET`), gets
+its stray zero set sampled and held clear by the far-field term in a short L-BFGS polish from
+its fit (:func:`repair`). The adaptive loop (:mod:`ipfit.adaptive`) calls it; the rounds tried
+are recorded in ``DegreeResult.cleanup``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import TYPE_CHECKING, Callable
+
+import numpy as np
+
+from .options import SearchOptions
+from .quality import stray_samples
+from .rules import TOLERANCE, is_clean
+
+if TYPE_CHECKING:
+    from .adaptive import DegreeResult
+
+__all__ = ["repair", "is_done", "clean", "best_clean_f", "CLEANUP_POLISH_ITERATIONS", "PRECISION_TARGET",
+           "REPAIR_RECALL", "RECALL_KEPT"]
+
+#: L-BFGS iterations of a clean-up polish: the kept-clear samples act early (the bunny's degree-6
+#: blobs went in a 7 s polish), while a full 1000-iteration one took 26 s at degree 8.
+CLEANUP_POLISH_ITERATIONS = 200
+#: The capture rule also repairs a clean degree whose precision is below PRECISION_TARGET while its
+#: recall is at least REPAIR_RECALL: the zero set reaches the data but also bulges away from it.
+#: A degree that misses the data as well is too low, not defective.
+PRECISION_TARGET = 0.95
+REPAIR_RECALL = 0.9
+#: A repair is kept only if the recall drops by at most this much: it removes stray zero set,
+#: not the zero set on the data (a sparse, thin model's fit can shrink off its thin parts).
+RECALL_KEPT = 0.02
+
+
+def clean(entry: DegreeResult, rule: str) -> bool:
+    """Whether a degree counts as clean for ``rule`` (the capture rule ignores specks)."""
+    return is_clean(entry.quality) if rule == "capture" else entry.clean
+
+
+def best_clean_f(results, rule: str) -> float:
+    """The best F-score among the clean degrees of ``results`` (0 when none is clean)."""
+    return max((r.quality.f_score for r in results if clean(r, rule)), default=0.0)
+
+
+def is_done(entry: DegreeResult, rule: str, best_f: float = 0.0) -> bool:
+    """Nothing left to repair: clean and, for the capture rule, precise enough, too low a degree
+    (it misses data) or out of the race (even a precision of 1 would leave its F-score more than
+    the rule's tolerance below ``best_f``, the best clean degree so far)."""
+    q = entry.quality
+    if not clean(entry, rule):
+        return False
+    if rule != "capture" or q.precision >= PRECISION_TARGET or q.recall < REPAIR_RECALL:
+        return True
+    return 2 * q.recall / (1 + q.recall) < best_f - TOLERANCE
+
+
+def _better(trial: DegreeResult, best: DegreeResult, rule: str, recall: float) -> bool:
+    """Cleaner first, then a higher F-score; but a repair of a clean degree must not buy precision
+    with the data: it keeps the recall (within RECALL_KEPT)."""
+    if clean(best, rule) and trial.quality.recall < recall - RECALL_KEPT:
+        return False
+    return (clean(trial, rule), trial.quality.f_score) > (clean(best, rule), best.quality.f_score)
+
+
+def _stray_distance(tau: float, pts, faces, ordered_contour) -> float:
+    if faces is not None or ordered_contour:
+        return tau
+    # A bare cloud: between its points even a perfect surface is up to about a spacing away from
+    # the nearest one; only what lies beyond that is stray.
+    from scipy.spatial import cKDTree
+
+    return max(tau, 2 * float(np.median(cKDTree(pts).query(pts, k=2)[0][:, 1])))
+
+
+def repair(entry: DegreeResult, refit: Callable[..., DegreeResult], options: SearchOptions, pts, faces,
+           ordered_contour, rule: str, best_f: float = 0.0) -> DegreeResult:
+    """Try to make a degree clean (and, for the capture rule, precise) before the rule judges it.
+
+    Its zero set's stray parts (farther than τ from the data: spurious components, sheets,
+    bulges and lobes attached to the shape) are sampled and held clear by the far-field term in
+    an L-BFGS polish from its fit, at each of the options' clean-up weights in turn, the places
+    accumulating over rounds. The best result (clean first, then the F-score) replaces the fit;
+    every round is recorded in ``cleanup``.
+
+    ``refit(options, start, keep_clear)`` fits the same degree again with the 'polish' method
+    from the coefficients ``start``, and measures it.
+    """
+    polish = min(CLEANUP_POLISH_ITERATIONS, options.for_method("polish", dim=pts.shape[1])["polish_iterations"])
+    stray = _stray_distance(entry.quality.tau, pts, faces, ordered_contour)
+    target = "precision" if clean(entry, rule) else "spurious components"
+    best = current = entry
+    places, attempts, nfev = [], [], entry.nfev
+    for weight in options.cleanup_weights:
+        # Spurious components first (their samples alone, as many as a bulge would otherwise take).
+        found = stray_samples(current.polynomial, pts, faces=faces, ordered_contour=bool(ordered_contour),
+                              distance=stray, spurious_only=current.quality.n_spurious > 0)
+        if len(found):
+            places.append(found)
+        if not places:
+            break
+        trial = refit(options.replace(far_term_weight=weight, start_fits=(), polish_iterations=polish),
+                      current.x, np.concatenate(places))
+        nfev += trial.nfev
+        attempts.append({"target": target, "far_term_weight": weight, "clean": clean(trial, rule),
+                         "f_score": trial.quality.f_score, "precision": trial.quality.precision,
+                         "n_spurious": trial.quality.n_spurious, "closed": bool(trial.quality.closed),
+                         "seconds": trial.seconds})
+        if _better(trial, best, rule, entry.quality.recall):
+            best = current = trial
+        if is_done(best, rule, best_f):
+            break
+    if best is not entry:
+        # The degree's fit is still the method's, repaired: keep its name ("cleanup" records it).
+        best = dataclasses.replace(best, polynomial=best.polynomial.with_coefficients(
+            best.polynomial.coefficients, method=entry.polynomial.method))
+    return dataclasses.replace(best, cleanup=tuple(attempts), nfev=nfev,
+                               seconds=entry.seconds + sum(a["seconds"] for a in attempts))
