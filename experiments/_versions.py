@@ -42,3 +42,22 @@ def run_side_by_side(task: Callable, before: str, old_jobs: list[tuple], new_job
             rows.append(row)
             print(json.dumps({k: v for k, v in row.items() if k not in ("polynomial", "degrees")}), flush=True)
     return rows
+
+
+def spurious_record(q) -> dict:
+    """A quality's spurious components, as stored in a row (either code version's quality)."""
+    return {"tau": q.tau, "spurious": [{"size": c["size"], "distance": c["distance"], "dim": len(c["center"])}
+                                       for c in q.spurious]}
+
+
+def spurious_cell(row: dict) -> str:
+    """Spurious components beyond specks (:func:`ipfit.rules.is_speck`, judged by this checkout),
+    and the specks in brackets."""
+    from ipfit.rules import is_speck
+
+    specks = sum(is_speck({**c, "center": [0.0] * c["dim"]}, row["tau"]) for c in row["spurious"])
+    return f"{len(row['spurious']) - specks}" + (f" (+{specks} speck{'s' if specks > 1 else ''})" if specks else "")
+
+
+def n_beyond_specks(row: dict) -> int:
+    return int(spurious_cell(row).split()[0])

@@ -28,7 +28,7 @@ from datetime import date
 from pathlib import Path
 
 import numpy as np
-from _versions import run_side_by_side
+from _versions import n_beyond_specks, run_side_by_side, spurious_cell, spurious_record
 
 BUNDLED = ("bunny", "apple", "duck")
 PIPELINES = ("before", "capture")
@@ -45,11 +45,11 @@ def fit_one(spec: str, pipeline: str, seed: int) -> dict:
     seconds = time.perf_counter() - start
     degrees = [{"degree": d.degree, "f_score": d.quality.f_score, "precision": d.quality.precision,
                 "recall": d.quality.recall, "n_spurious": d.quality.n_spurious, "closed": bool(d.quality.closed),
-                "seconds": d.seconds, "repairs": len(d.cleanup)} for d in result.degrees]
+                "seconds": d.seconds, "repairs": len(d.cleanup), **spurious_record(d.quality)} for d in result.degrees]
     chosen = next(d for d in degrees if d["degree"] == result.selected_degree)
     return {"model": Path(spec).stem, "n": len(data.points), "pipeline": pipeline, "selected": result.selected_degree,
             "seconds": seconds, "reason": result.reason, "degrees": degrees,
-            **{k: chosen[k] for k in ("f_score", "precision", "recall", "n_spurious", "closed")},
+            **{k: chosen[k] for k in ("f_score", "precision", "recall", "n_spurious", "closed", "tau", "spurious")},
             "polynomial": result.polynomial.to_dict()}
 
 
@@ -102,7 +102,9 @@ def markdown(rows: list[dict], seed: int) -> str:
         "today's (the capture rule, which also repairs a clean degree whose zero set bulges away from the data). "
         "Measured by `ipfit.quality.quality` against each mesh's faces (τ = 2% of the box diagonal): "
         "**precision** is the share of the zero set within τ of the data's surface (a bulge or a lobe lowers it), "
-        "**recall** the share of the data within τ of the zero set. Two worker processes with one thread each, "
+        "**recall** the share of the data within τ of the zero set; spurious components are counted beyond *specks* "
+        "(`ipfit.rules.is_speck`: smaller than τ² in area and within 2τ of the data, fragments of thin parts at the "
+        "sampling resolution), which are shown in brackets. Two worker processes with one thread each, "
         "one per code version, side by side.",
         "",
     ]
@@ -110,22 +112,26 @@ def markdown(rows: list[dict], seed: int) -> str:
     for p in PIPELINES:
         f = np.array([by_model[m][p]["f_score"] for m in models])
         summary.append(f"| {p} | {np.median(f):.3f} | {f.min():.3f} | "
-                       f"{sum(by_model[m][p]['n_spurious'] > 0 for m in models)} | "
+                       f"{sum(n_beyond_specks(by_model[m][p]) > 0 for m in models)} | "
+                       f"{sum(len(by_model[m][p]['spurious']) > n_beyond_specks(by_model[m][p]) for m in models)} | "
                        f"{sum(by_model[m][p]['seconds'] for m in models):.0f} |")
-    lines += ["| pipeline | median F | minimum F | models with spurious components | total seconds |",
-              "|---|---|---|---|---|", *summary, ""]
+    lines += ["| pipeline | median F | minimum F | models with spurious components | models with specks | "
+              "total seconds |", "|---|---|---|---|---|---|", *summary, ""]
     t_before = sum(by_model[m]["before"]["seconds"] for m in models)
     t_after = sum(by_model[m]["capture"]["seconds"] for m in models)
     worse = [m for m in models if by_model[m]["capture"]["f_score"] < by_model[m]["before"]["f_score"] - 0.01]
+    new_spurious = [m for m in models
+                    if n_beyond_specks(by_model[m]["capture"]) > 0 and n_beyond_specks(by_model[m]["before"]) == 0]
     lines += [f"Time of today's pipeline / the previous one: {t_after / t_before:.2f}×. Models more than 0.01 "
-              f"below their previous F-score: {', '.join(worse) or 'none'}.", ""]
+              f"below their previous F-score: {', '.join(worse) or 'none'}. Models with a spurious component "
+              f"today and none before: {', '.join(new_spurious) or 'none'}.", ""]
     lines += ["## Selected degree", "",
               "*degree / F / precision / recall / spurious / seconds*", "",
               "| model | N | before | capture | stop |", "|---|---|---|---|---|"]
 
     def cell(r):
         return (f"{r['selected']} / {r['f_score']:.3f} / {r['precision']:.3f} / {r['recall']:.3f} / "
-                f"{r['n_spurious']} / {r['seconds']:.0f}")
+                f"{spurious_cell(r)} / {r['seconds']:.0f}")
 
     for m in models:
         got = by_model[m]
@@ -140,7 +146,7 @@ def markdown(rows: list[dict], seed: int) -> str:
         for g in sorted(set(before) | set(after)):
             def c(d):
                 return "—" if d is None else (f"{d['f_score']:.3f} / {d['precision']:.3f} / {d['recall']:.3f} / "
-                                              f"{d['n_spurious']} / {d['seconds']:.1f}")
+                                              f"{spurious_cell(d)} / {d['seconds']:.1f}")
             lines.append(f"| {m} | {g} | {c(before.get(g))} | {c(after.get(g))} | "
                          f"{after[g]['repairs'] if g in after else '—'} |")
     lines += ["", "## Figures", "", "The selected zero set of each pipeline, the data's points drawn over it.", ""]

@@ -79,10 +79,13 @@ def test_the_loop_stops_once_the_shape_is_captured():
 
 
 def test_specks_and_far_open_pieces_do_not_make_a_zero_set_unclean():
-    speck = {"size": 0.04, "share": 0.001, "center": [3.0, 3.0], "distance": 2.0}   # shorter than tau = 0.05
-    loop = {"size": 0.5, "share": 0.05, "center": [3.0, 3.0], "distance": 2.0}
+    # tau = 0.05: a speck is shorter than tau and comes within 2 tau of the data
+    speck = {"size": 0.04, "share": 0.001, "center": [3.0, 3.0], "distance": 0.09}
+    loop = {"size": 0.5, "share": 0.05, "center": [3.0, 3.0], "distance": 0.09}
+    oval = {**speck, "distance": 0.11}     # as small, but out in empty space
     assert is_clean(_quality(spurious=[speck]))
     assert not is_clean(_quality(spurious=[loop]))
+    assert not is_clean(_quality(spurious=[oval]))
     assert not is_clean(_quality(n_open=1))
     assert not is_clean(_quality(n_components=0))
     assert not is_clean(None)

@@ -14,9 +14,11 @@
   F-score (and ``success`` is False).
 
 *Clean* (:func:`is_clean`) means no spurious component that matters and no open piece near
-the data: a spurious component smaller than τ (length in 2D, τ² area in 3D; τ is the quality
-tolerance, 2 % of the box diagonal) is a speck below the measurement's resolution and does not
-count, and a zero set counts as closed when every piece near the data closes in the box.
+the data: a *speck* (:func:`is_speck`: a spurious component smaller than τ, length in 2D, τ²
+area in 3D, that comes within :data:`SPECK_REACH` τ of the data; τ is the quality tolerance, 2 %
+of the box diagonal) is a fragment of a thin part at the measurement's resolution and does not
+count, while a small oval out in empty space does; a zero set counts as closed when every piece
+near the data closes in the box.
 
 ``"paper"`` is Algorithm 1 exactly: stop as soon as the smoothness gains no more than ε and
 take the previous degree. ``"geometric"`` (the rule before ``"capture"``) is the same rule
@@ -34,7 +36,7 @@ from .quality import Quality
 
 __all__ = ["RULES", "select_degree", "select_degree_geometric", "select_degree_capture", "gains", "capture_stop",
            "is_clean", "select", "describe_unclean", "explain", "verdict", "GAIN", "DISTANCE_GAIN", "PATIENCE",
-           "TOLERANCE"]
+           "TOLERANCE", "is_speck", "SPECK_REACH"]
 
 RULES = ("capture", "geometric", "paper")
 
@@ -91,9 +93,26 @@ def select_degree_geometric(degrees: Sequence[int], smoothness: Sequence[float],
     return best, "geometric"
 
 
+#: A speck comes within this many τ of the data (see :func:`is_speck`).
+SPECK_REACH = 2.0
+
+
+def is_speck(component: dict, tau: float) -> bool:
+    """Whether a spurious component (an entry of :attr:`Quality.spurious`) is a speck: smaller
+    than τ (its length in 2D, its area against τ² in 3D) and within :data:`SPECK_REACH` τ of the
+    data, i.e. a fragment of a thin part at the sampling resolution, not an oval in empty space.
+
+    >>> is_speck({"size": 0.01, "distance": 0.06, "center": [0.0, 0.0]}, tau=0.05)
+    True
+    >>> is_speck({"size": 0.01, "distance": 2.0, "center": [0.0, 0.0]}, tau=0.05)
+    False
+    """
+    return component["size"] < tau ** (len(component["center"]) - 1) and component["distance"] < SPECK_REACH * tau
+
+
 def is_clean(q: Quality | None) -> bool:
-    """Clean for the capture rule: a non-empty zero set, every spurious component a speck (smaller
-    than τ in length, τ² in area) and every piece near the data closed inside the box.
+    """Clean for the capture rule: a non-empty zero set, every spurious component a speck
+    (:func:`is_speck`) and every piece near the data closed inside the box.
 
     >>> from ipfit.datasets import synthetic
     >>> from ipfit.quality import quality
@@ -103,8 +122,7 @@ def is_clean(q: Quality | None) -> bool:
     """
     if q is None or q.n_components == 0:
         return False
-    specks = all(c["size"] < q.tau ** (len(c["center"]) - 1) for c in q.spurious)
-    return specks and q.n_open == 0
+    return all(is_speck(c, q.tau) for c in q.spurious) and q.n_open == 0
 
 
 def _clean_f(entry) -> float | None:
