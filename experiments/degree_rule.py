@@ -92,7 +92,7 @@ def markdown(rows: list[dict], seed: int) -> str:
         "the code of commit 69d992a; the paper's and the capture pipelines in the other). Shapes: the bundled contours (boot, airplane, butterfly) and the 140 "
         "MPEG-7 development contours (instances 5 and 15 of each class). F-score, spurious components and "
         "closedness are measured by `ipfit.quality.quality` (τ = 2% of the box diagonal) at the selected degree; "
-        "spurious components are counted beyond *specks* (`ipfit.rules.is_speck`: shorter than τ and within 2τ of "
+        "spurious components are counted beyond *specks* (`ipfit.rules.is_speck`: shorter than τ/2 and within 2τ of "
         "the data, fragments at the sampling resolution), which are shown in brackets.",
         "",
         "* **paper**: `ipfit fit --paper` (the paper's DE and Algorithm 1, degrees up to 10);",

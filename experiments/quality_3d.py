@@ -103,7 +103,7 @@ def markdown(rows: list[dict], seed: int) -> str:
         "Measured by `ipfit.quality.quality` against each mesh's faces (τ = 2% of the box diagonal): "
         "**precision** is the share of the zero set within τ of the data's surface (a bulge or a lobe lowers it), "
         "**recall** the share of the data within τ of the zero set; spurious components are counted beyond *specks* "
-        "(`ipfit.rules.is_speck`: smaller than τ² in area and within 2τ of the data, fragments of thin parts at the "
+        "(`ipfit.rules.is_speck`: smaller than τ²/4 in area and within 2τ of the data, fragments of thin parts at the "
         "sampling resolution), which are shown in brackets. Two worker processes with one thread each, "
         "one per code version, side by side.",
         "",

@@ -79,8 +79,8 @@ def test_the_loop_stops_once_the_shape_is_captured():
 
 
 def test_specks_and_far_open_pieces_do_not_make_a_zero_set_unclean():
-    # tau = 0.05: a speck is shorter than tau and comes within 2 tau of the data
-    speck = {"size": 0.04, "share": 0.001, "center": [3.0, 3.0], "distance": 0.09}
+    # tau = 0.05: a speck is shorter than tau / 2 and comes within 2 tau of the data
+    speck = {"size": 0.024, "share": 0.001, "center": [3.0, 3.0], "distance": 0.09}
     loop = {"size": 0.5, "share": 0.05, "center": [3.0, 3.0], "distance": 0.09}
     oval = {**speck, "distance": 0.11}     # as small, but out in empty space
     assert is_clean(_quality(spurious=[speck]))
@@ -89,9 +89,10 @@ def test_specks_and_far_open_pieces_do_not_make_a_zero_set_unclean():
     assert not is_clean(_quality(n_open=1))
     assert not is_clean(_quality(n_components=0))
     assert not is_clean(None)
-    # 3D: sizes are areas, compared with tau²
-    assert is_clean(_quality(spurious=[{**speck, "size": 0.002, "center": [0, 0, 0]}]))
-    assert not is_clean(_quality(spurious=[{**speck, "size": 0.003, "center": [0, 0, 0]}]))
+    assert not is_clean(_quality(spurious=[{**speck, "size": 0.026}]))
+    # 3D: sizes are areas, compared with (tau / 2)² = 0.000625
+    assert is_clean(_quality(spurious=[{**speck, "size": 0.0006, "center": [0, 0, 0]}]))
+    assert not is_clean(_quality(spurious=[{**speck, "size": 0.0007, "center": [0, 0, 0]}]))
 
 
 def test_open_pieces_are_counted_only_near_the_data():

@@ -14,9 +14,9 @@
   F-score (and ``success`` is False).
 
 *Clean* (:func:`is_clean`) means no spurious component that matters and no open piece near
-the data: a *speck* (:func:`is_speck`: a spurious component smaller than τ, length in 2D, τ²
-area in 3D, that comes within :data:`SPECK_REACH` τ of the data; τ is the quality tolerance, 2 %
-of the box diagonal) is a fragment of a thin part at the measurement's resolution and does not
+the data: a *speck* (:func:`is_speck`: a spurious component shorter than τ/2 in 2D, smaller
+than τ²/4 in area in 3D, that comes within :data:`SPECK_REACH` τ of the data; τ is the quality
+tolerance, 2 % of the box diagonal) is a fragment of a thin part at the measurement's resolution and does not
 count, while a small oval out in empty space does; a zero set counts as closed when every piece
 near the data closes in the box.
 
@@ -99,15 +99,17 @@ SPECK_REACH = 2.0
 
 def is_speck(component: dict, tau: float) -> bool:
     """Whether a spurious component (an entry of :attr:`Quality.spurious`) is a speck: smaller
-    than τ (its length in 2D, its area against τ² in 3D) and within :data:`SPECK_REACH` τ of the
-    data, i.e. a fragment of a thin part at the sampling resolution, not an oval in empty space.
+    than a τ/2 square (length τ/2 in 2D, area τ²/4 in 3D) and within :data:`SPECK_REACH` τ of
+    the data, i.e. a fragment of a thin part at the sampling resolution, not an oval in empty
+    space. (A thin model's fit breaks up into such fragments; the repair of a degree does not
+    chase them, and ``ipfit fit --trim`` removes them from an exported zero set.)
 
     >>> is_speck({"size": 0.01, "distance": 0.06, "center": [0.0, 0.0]}, tau=0.05)
     True
     >>> is_speck({"size": 0.01, "distance": 2.0, "center": [0.0, 0.0]}, tau=0.05)
     False
     """
-    return component["size"] < tau ** (len(component["center"]) - 1) and component["distance"] < SPECK_REACH * tau
+    return component["size"] < (tau / 2) ** (len(component["center"]) - 1) and component["distance"] < SPECK_REACH * tau
 
 
 def is_clean(q: Quality | None) -> bool:
