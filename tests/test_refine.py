@@ -285,3 +285,16 @@ def test_invalid_data():
         refine(pts, None, 2)
     with pytest.raises(InvalidInputError, match="at least 15 points"):
         refine(pts, nrm, 4)
+
+
+def test_a_big_clouds_solutions_have_the_sign_all_its_normals_give(rng):
+    # Beyond FULL_POLISH_POINTS the sign of each solution is decided on a strided sample; it must
+    # be the one every point's normal gives: f grows outwards (the gradient agrees with the normals).
+    from ipfit.refine import FULL_POLISH_POINTS
+
+    shape = synthetic.torus(3 * FULL_POLISH_POINTS // 2)
+    res = refine(shape.points, shape.normals, 4, "polish", options=opts(start_fits=("3l", "lstsq")), rng=rng)
+    assert len(res.solutions) >= 2
+    for poly in res.solutions:
+        assert np.sum(poly.gradient(shape.points) * shape.normals) > 0
+        assert np.allclose(poly.canonical(shape.points, shape.normals).coefficients, poly.coefficients, atol=0)

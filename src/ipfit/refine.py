@@ -334,8 +334,12 @@ def _best_distinct(pool, pool_fun, n_solutions: int) -> list[int]:
 def _solutions(template, pool, pool_fun, kept, obj64, pts, unit_normals, starts: StartFits):
     """Canonical-sign polynomials with their measures; the first is never above the best start."""
     out = []
+    # The sign only needs the normals' average agreement: a strided sample of at most
+    # FULL_POLISH_POINTS points decides it (the gradients at a million points, per solution,
+    # cost minutes); smaller clouds use every point.
+    every = -(-len(pts) // FULL_POLISH_POINTS)
     for rank, i in enumerate(kept):
-        poly = template.with_coefficients(pool[i]).canonical(pts, unit_normals)
+        poly = template.with_coefficients(pool[i]).canonical(pts[::every], unit_normals[::every])
         m = obj64.measures(poly.coefficients)[0]
         if m.distance > pool_fun[i] + 1e-12 * max(1.0, abs(pool_fun[i])):
             # canonical() chose the sign by the raw gradient agreement, which in rare cases
