@@ -22,6 +22,7 @@ import platform
 import resource
 import subprocess
 import sys
+import tempfile
 import time
 from datetime import date
 from pathlib import Path
@@ -142,9 +143,8 @@ def main(argv=None) -> int:
     rows = spurious.run(args.iterations, args.quick)
     Path(args.spurious_out).write_text(spurious.markdown(rows, args.iterations), encoding="utf-8")
     Path(args.spurious_out).with_suffix(".json").write_text(json.dumps(rows, indent=1), encoding="utf-8")
-    work = REPO / "docs" / "performance"
-    work.mkdir(parents=True, exist_ok=True)
-    bunny = bunny_command(work)
+    with tempfile.TemporaryDirectory() as work:  # the command's outputs are not kept
+        bunny = bunny_command(Path(work))
     print(json.dumps(bunny), flush=True)
     sizes = [float(v) for v in args.scaling.split(",") if v] if not args.quick else []
     scale = scaling(sizes, args.kinds.split(","))
