@@ -56,8 +56,9 @@ METHOD_DEFAULTS: Mapping[str, float | int] = {"mutation": 0.7, "recombination": 
 #: ``benchmarks/bench_search_budget.py``). A contour's 1,000 spread points sample it about as
 #: densely as 3,000 do a surface and halve the search's time on the larger contours; contours
 #: also keep their F-scores with a 30-generation stall and 300 polish iterations (checked over
-#: 143 contours, docs/degree-rule.md). Surfaces keep 60 and 1,000 until the shorter budget,
-#: as good on docs/search-budget.md's 12 fixed-degree fits, is checked over whole pipelines.
+#: 143 contours, docs/degree-rule.md). Surfaces keep 60 and 1,000: the shorter budget, as good
+#: on docs/search-budget.md's 12 fixed-degree fits, lost up to 0.23 in F on the thin models of
+#: docs/quality-3d.md when the whole pipeline ran with it (docs/search-budget.md).
 AUTO: Mapping[str, Mapping[int, Any]] = {"search_points": {2: 1000, 3: 3000},
                                          "stall_generations": {2: 30, 3: 60},
                                          "polish_iterations": {2: 300, 3: 1000}}
