@@ -288,3 +288,32 @@ def test_the_figure_draws_the_trimmed_zero_set(fitted_cup):
     trimmed_zs = ipfit.extract_zero_set(poly, points=points).trimmed(points)
     trimmed = drawn(plot_result(poly, points, trim=trimmed_zs.trim.distance))
     assert 0 < trimmed < whole
+
+
+def test_plot_trim_draws_less_of_the_closed_cup(cup_file, tmp_path, capsys):
+    # `ipfit plot --trim` draws what `ipfit mesh --trim` exports: the lid the fit added is gone,
+    # so fewer pixels are painted; the data comes from the result's recorded input.
+    from matplotlib.image import imread
+
+    path, points = cup_file
+    code, _, err = run(capsys, ["fit", path, "--degree", "4", "--method", "3l", "--no-picture", "--no-zero-set",
+                                "-o", tmp_path / "fit"])
+    assert code == 0, err
+    result = tmp_path / "fit.json"
+    code, out, err = run(capsys, ["plot", result, "-o", tmp_path / "whole.png"])
+    assert code == 0, err
+    code, out, err = run(capsys, ["plot", result, "-o", tmp_path / "trimmed.png", "--trim"])
+    assert code == 0, err
+    assert f"trimmed to within {default_trim_distance(points):.4g} of the data" in out, out
+
+    whole, trimmed = (imread(tmp_path / name)[..., :3] for name in ("whole.png", "trimmed.png"))
+    rows = np.flatnonzero((whole.min(axis=-1) < 0.95).any(axis=1)[40:]) + 40  # below the title
+    middle = (rows.min() + rows.max()) // 2
+    changed = np.abs(whole - trimmed).sum(axis=-1) > 0.1
+    # the lid's pixels changed (the inside wall shows through), the wall and bottom did not
+    assert changed.sum() > 1000
+    assert changed[:middle].sum() > 0.95 * changed.sum()
+    # refused in one line, nothing written
+    code, out, err = run(capsys, ["plot", result, "-o", tmp_path / "bad.png", "--trim", "--no-points"])
+    assert code == 2 and err.count("\n") == 1 and "--no-points" in err, err
+    assert not (tmp_path / "bad.png").exists()

@@ -57,8 +57,8 @@ def trim_distance(text: str):
     return value
 
 
-def add_trim_argument(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--trim", nargs="?", const=TRIM_DEFAULT, type=trim_distance, metavar="DIST", help=TRIM_HELP)
+def add_trim_argument(parser: argparse.ArgumentParser, help: str = TRIM_HELP) -> None:
+    parser.add_argument("--trim", nargs="?", const=TRIM_DEFAULT, type=trim_distance, metavar="DIST", help=help)
 
 
 def trim_for_export(zero_set, points, faces, trim):
@@ -151,7 +151,7 @@ def load_points(spec: str | None, view, command: str, *, required: bool = False,
     return data.points, faces
 
 
-def _trim_data(view, spec: str | None):
+def trim_data(view, spec: str | None):
     """(points, faces) to trim to: --points DATA, else the data the result records."""
     from ..exceptions import InvalidInputError
 
@@ -191,7 +191,7 @@ def run(args: argparse.Namespace) -> int:
         box = result_box(view, args.points, args.margin, NAME)
         zero_set = extract_zero_set(poly, bounds=box, resolution=args.resolution)
     else:
-        points, faces = _trim_data(view, args.points)
+        points, faces = trim_data(view, args.points)
         # the box of result_box, without loading the data a second time
         box = data_bounds(points if args.points is not None or view.bounds is None else view.bounds.T, args.margin)
         zero_set, summary = trim_for_export(extract_zero_set(poly, bounds=box, resolution=args.resolution), points,

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from ._common import Outputs, finite_float, nonnegative_float, positive_int, recorded_sources
+from .mesh import TRIM_DEFAULT, add_trim_argument
 
 NAME = "plot"
 HELP = "draw a result: the zero set of each degree with the data, smoothness vs degree, classic and 3L fits"
@@ -18,6 +19,10 @@ data near them) are drawn in red. Rendered without a display; the format follows
 
 Without --points, the data the result records ("input": its path, or a bundled dataset's name)
 is drawn; when it cannot be found, a warning says so and the figure has no points.
+
+--trim [DIST] draws only the part of each zero set within DIST of the data, as `ipfit fit --trim`
+and `ipfit mesh --trim` export it (an open scan stays open); without DIST, 5 x the data's median
+point spacing, or 2% of its box diagonal if larger.
 """
 
 MAX_DPI = 2400
@@ -51,22 +56,32 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="3D: the axis drawn vertically (default z; scanned meshes like the bunny are y-up)")
     parser.add_argument("--dpi", type=_dpi, default=110,
                         help=f"resolution of raster output, 1 to {MAX_DPI} (default 110)")
+    add_trim_argument(parser, help="draw only the zero set within DIST of the data (data units; default, or "
+                                   "'auto': 5 x the median point spacing, at least 2%% of the box diagonal)")
 
 
 def run(args: argparse.Namespace) -> int:
+    from ..exceptions import InvalidInputError
     from ..plotting import check_figure_path, plot_result
     from ..results import result_view
-    from .mesh import load_points
+    from ..trim import default_trim_distance
+    from .mesh import load_points, trim_data
 
     check_figure_path(args.output, "-o/--output")
+    if args.trim is not None and args.no_points:
+        raise InvalidInputError("--trim: it trims to the data, which --no-points leaves out. Drop one of them.")
     view = result_view(args.result)
     outputs = Outputs([args.output], inputs=[args.result, args.points, *recorded_sources(view.data)])
-    points = faces = None
-    if not args.no_points:
+    points = faces = trim = None
+    if args.trim is not None:
+        points, faces = trim_data(view, args.points)
+        trim = default_trim_distance(points) if args.trim == TRIM_DEFAULT else args.trim
+    elif not args.no_points:
         points, faces = load_points(args.points, view, NAME, missing="drawing the zero sets without the points")
     with outputs.writing() as stage:
         fig = plot_result(view.data, points=points, faces=faces, path=stage(args.output), title=args.title,
                           margin=args.margin, resolution=args.resolution, view=tuple(args.view), up=args.up,
-                          dpi=args.dpi)
-    print(f"{args.output}: {len(fig.axes)} panel(s)")
+                          dpi=args.dpi, trim=trim)
+    trimmed = "" if trim is None else f", zero sets trimmed to within {trim:.4g} of the data"
+    print(f"{args.output}: {len(fig.axes)} panel(s){trimmed}")
     return 0
