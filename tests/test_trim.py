@@ -317,3 +317,65 @@ def test_plot_trim_draws_less_of_the_closed_cup(cup_file, tmp_path, capsys):
     code, out, err = run(capsys, ["plot", result, "-o", tmp_path / "bad.png", "--trim", "--no-points"])
     assert code == 2 and err.count("\n") == 1 and "--no-points" in err, err
     assert not (tmp_path / "bad.png").exists()
+
+
+def test_the_viewer_draws_the_trimmed_zero_set(fitted_cup):
+    # result_figure(trim=...) (ipfit view --trim, ipfit fit --html --trim): fewer triangles, the
+    # kept ones near the data
+    from ipfit.viewer import result_figure
+
+    points, poly, zs = fitted_cup
+    distance = zs.trimmed(points).trim.distance
+
+    def meshes(fig):
+        return [t for t in fig.data if t.type == "mesh3d"]
+
+    # no decimation, so that face counts compare
+    whole = sum(len(t.i) for t in meshes(result_figure(poly, points, max_faces=10**7)))
+    kept = meshes(result_figure(poly, points, trim=distance, max_faces=10**7))
+    assert 0 < sum(len(t.i) for t in kept) < whole
+    vertices = np.vstack([np.column_stack([t.x, t.y, t.z]) for t in kept])
+    assert cKDTree(points).query(vertices)[0].max() <= distance * (1 + 1e-6)
+    with pytest.raises(InvalidInputError, match="points"):
+        result_figure(poly, None, trim=distance)
+
+
+def test_view_trim_on_the_command_line(cup_file, tmp_path, capsys):
+    path, points = cup_file
+    code, _, err = run(capsys, ["fit", path, "--degree", "4", "--method", "3l", "--no-picture", "--no-zero-set",
+                                "-o", tmp_path / "fit"])
+    assert code == 0, err
+    code, out, err = run(capsys, ["view", tmp_path / "fit.json", "-o", tmp_path / "v.html", "--trim"])
+    assert code == 0, err
+    assert f"trimmed to within {default_trim_distance(points):.4g} of the data" in out, out
+    code, out, err = run(capsys, ["view", tmp_path / "fit.json", "-o", tmp_path / "bad.html", "--trim",
+                                  "--no-points"])
+    assert code == 2 and err.count("\n") == 1 and "--no-points" in err, err
+    assert not (tmp_path / "bad.html").exists()
+    # ipfit fit --html --trim: the page's surfaces are the trimmed ones, every vertex near the data
+    common = ["fit", path, "--degree", "4", "--method", "3l", "--no-picture", "--html"]
+    assert run(capsys, common + ["-o", tmp_path / "whole"])[0] == 0
+    assert run(capsys, common + ["--trim", "-o", tmp_path / "cut"])[0] == 0
+    distance = default_trim_distance(points)
+    far = {name: cKDTree(points).query(page_vertices(tmp_path / f"{name}.html"))[0].max()
+           for name in ("whole", "cut")}
+    assert far["cut"] <= distance * (1 + 1e-5) < far["whole"]
+
+
+def page_vertices(page) -> np.ndarray:
+    """The vertices of every surface (mesh3d trace) a viewer page draws, read from its plotly data."""
+    import base64
+
+    text = Path(page).read_text(encoding="utf-8")
+    start = text.index("Plotly.newPlot(")
+    start = text.index("[", text.index(",", start))
+    traces, _ = json.JSONDecoder().raw_decode(text, start)
+
+    def values(v):
+        if isinstance(v, dict):  # plotly's typed arrays: {"dtype": "f4", "bdata": base64}
+            return np.frombuffer(base64.b64decode(v["bdata"]), dtype=np.dtype(v["dtype"]))
+        return np.asarray(v, dtype=float)
+
+    meshes = [t for t in traces if t.get("type") == "mesh3d"]
+    assert meshes
+    return np.vstack([np.column_stack([values(t[a]) for a in "xyz"]) for t in meshes]).astype(float)

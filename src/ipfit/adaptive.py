@@ -251,7 +251,8 @@ def fit_adaptive(points: ArrayLike, normals: ArrayLike | None = None, *, method:
         :data:`ipfit.RECOMMENDED`; :data:`ipfit.PAPER` is the paper's); an error with a linear
         method or a callable, which have no search.
     max_degree : G, the last degree tried. Default: with the capture rule 14 in 2D and 8 in 3D,
-        lowered to the highest degree with at least 2 points per coefficient; with the other rules 10 in 2D and 8 in 3D (the paper).
+        lowered to the highest degree with at least 2 points per coefficient; with the other
+        rules 10 in 2D and 8 in 3D (the paper).
     min_degree : the first degree tried (default 2).
     epsilon : ε, the smallest smoothness gain that justifies a higher degree.
     delta : δ of the paper's distance.

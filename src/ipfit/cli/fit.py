@@ -41,8 +41,8 @@ Outputs, all written together or not at all (-o PREFIX, or -o PREFIX.json):
 
 --trim [DIST] exports only the part of the zero set within DIST of the data (an open scan stays
 open; without DIST: 5 x the median point spacing, or 2% of the box diagonal if larger); the
-picture shows the same trimmed zero set; the polynomial, the JSON and the HTML viewer keep the whole
-fit, and one line says what went.
+picture and the HTML viewer show the same trimmed zero sets; the polynomial and the JSON keep the
+whole fit, and one line says what went.
 
 Odd degrees are accepted with a warning: their zero set is never bounded. Ctrl-C (or SIGTERM)
 stops cleanly: the outputs keep every degree already finished; before the first one, nothing
@@ -234,16 +234,16 @@ def _write_outputs(outputs: Outputs, prefix: Path, payload: dict, result, points
                 zero_set, summary = trim_for_export(zero_set, points, data.faces, args.trim)
             for suffix in [".ply"] if points.shape[1] == 3 else [".svg", ".csv"]:
                 save_zero_set(zero_set, stage(beside(prefix, suffix)))
+        # with --trim the figure and the viewer show what the exported zero set holds
+        trim = None if zero_set is None or zero_set.trim is None else zero_set.trim.distance
         if not args.no_picture:
             from ..plotting import plot_result
 
-            # with --trim the figure shows what the exported zero set holds
-            trim = None if zero_set is None or zero_set.trim is None else zero_set.trim.distance
             plot_result(payload, points=points, path=stage(beside(prefix, ".png")), trim=trim,
                         faces=None if trim is None else data.faces)
         if args.html:
             from ..viewer import write_html
 
-            write_html(payload, points, stage(beside(prefix, ".html")), faces=data.faces, normals=normals)
+            write_html(payload, points, stage(beside(prefix, ".html")), faces=data.faces, normals=normals, trim=trim)
         stage(beside(prefix, ".json")).write_text(json.dumps(payload, indent=1), encoding="utf-8")
     return summary

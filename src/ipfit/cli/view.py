@@ -6,6 +6,7 @@ import argparse
 from pathlib import Path
 
 from ._common import nonnegative_float, positive_int
+from .mesh import TRIM_DEFAULT, add_trim_argument
 
 NAME = "view"
 HELP = "write an interactive HTML viewer of a result (rotate, zoom, switch degrees), offline"
@@ -17,6 +18,9 @@ legend), the per-degree table, why the degree was selected, and smoothness again
 Hovering a point shows its index and |f|/|grad f| at the degree shown.
 
 Without --points, the data recorded in the result ("input") is used when it can be read.
+--trim [DIST] draws only the part of each zero set within DIST of the data, as `ipfit fit --trim`
+and `ipfit mesh --trim` export it; without DIST, 5 x the data's median point spacing, or 2% of its
+box diagonal if larger.
 Needs plotly: pip install 'ipfit[viewer]'.
 """
 
@@ -37,14 +41,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--margin", type=nonnegative_float, default=0.25,
                         help="margin around the data's box, as a fraction of its longest side (default 0.25)")
     parser.add_argument("--open", action="store_true", help="open the page in the web browser")
+    add_trim_argument(parser, help="draw only the zero set within DIST of the data (data units; default, or "
+                                   "'auto': 5 x the median point spacing, at least 2%% of the box diagonal)")
 
 
 def run(args: argparse.Namespace) -> int:
     from ..exceptions import InvalidInputError
     from ..results import load_result
+    from ..trim import default_trim_distance
     from ..viewer import MAX_FACES, write_html
     from ._common import Outputs, load_input, recorded_sources
 
+    if args.trim is not None and args.no_points:
+        raise InvalidInputError("--trim: it trims to the data, which --no-points leaves out. Drop one of them.")
     data = load_result(args.result)
     output = Path(args.output) if args.output else Path(args.result).with_suffix(".html")
     outputs = Outputs([output], inputs=[args.result, args.points, *recorded_sources(data)])
@@ -67,11 +76,18 @@ def run(args: argparse.Namespace) -> int:
         if found is not None:
             points, faces = found.points, found.faces
             normals = None if args.no_normals else found.normals
+    trim = None
+    if args.trim is not None:
+        if points is None:
+            raise InvalidInputError("--trim: it needs the data to trim to, and the result's recorded input could "
+                                    "not be read. Pass the data with --points DATA.")
+        trim = default_trim_distance(points) if args.trim == TRIM_DEFAULT else args.trim
     with outputs.writing() as stage:
         write_html(data, points, stage(output), faces=faces, normals=normals, title=args.title, up=args.up,
-                   margin=args.margin, max_faces=args.max_faces or MAX_FACES)
+                   margin=args.margin, max_faces=args.max_faces or MAX_FACES, trim=trim)
     size = output.stat().st_size / 1e6
-    print(f"{output}: {size:.1f} MB" + ("" if points is not None else " (without the data points)"))
+    print(f"{output}: {size:.1f} MB" + ("" if points is not None else " (without the data points)")
+          + ("" if trim is None else f", zero sets trimmed to within {trim:.4g} of the data"))
     if args.open:
         import webbrowser
 

@@ -10,7 +10,7 @@ from typing import Any, Mapping, NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._validation import as_normals, as_points, check_choice, check_int
+from .._validation import as_normals, as_points, check_choice, check_int, check_positive, error
 from ..exceptions import IpfitError
 from ..results import load_result, result_view
 from ..polynomial import ImplicitPolynomial
@@ -220,7 +220,7 @@ def _chart_traces(go, fits: list[_Fit], selected: int | None, current: int) -> l
 def result_figure(result, points: ArrayLike | None = None, *, faces: ArrayLike | None = None,
                   normals: ArrayLike | None = None, ordered_contour: bool | None = None, title: str | None = None,
                   margin: float = 0.25, resolution: int | None = None, max_faces: int = MAX_FACES,
-                  max_points: int = MAX_POINTS, up: str = "z"):
+                  max_points: int = MAX_POINTS, up: str = "z", trim: float | None = None):
     """The interactive figure of a result (a ``plotly.graph_objects.Figure``).
 
     Parameters
@@ -238,6 +238,9 @@ def result_figure(result, points: ArrayLike | None = None, *, faces: ArrayLike |
     max_faces : faces per degree after :func:`decimate`.
     max_points : data points drawn (every k-th beyond).
     up : 3D: the axis pointing up on screen ('x', 'y' or 'z'; the bunny is y-up).
+    trim : draw only the parts of each zero set within this distance of the data
+        (:meth:`ipfit.zeroset.ZeroSet.trimmed`, as ``ipfit fit --trim`` exports them; needs
+        ``points``); the polynomial is unchanged.
     """
     go = _plotly()
     data = _as_dict(result)
@@ -246,6 +249,10 @@ def result_figure(result, points: ArrayLike | None = None, *, faces: ArrayLike |
     up = check_choice(up, "up", ("x", "y", "z"))
     max_points = check_int(max_points, "max_points", minimum=1)
     pts = None if points is None else as_points(points, dims=(dim,), min_points=2)
+    if trim is not None:
+        trim = check_positive(trim, "trim")
+        if pts is None:
+            raise error("points", "the data to trim the zero sets to", "None", "Pass points or drop trim.")
     if pts is not None:
         box = data_bounds(pts, margin)
     elif data.get("bounds") is not None:
@@ -266,10 +273,15 @@ def result_figure(result, points: ArrayLike | None = None, *, faces: ArrayLike |
     for i, fit in enumerate(fits):
         zs = extract_zero_set(fit.polynomial, bounds=box, resolution=resolution)
         q = fit.entry.get("quality") or {}
+        recorded = q.get("n_spurious")
+        if trim is not None:
+            zs = zs.trimmed(pts, trim, faces=faces)
+            # trimming splits components: a recorded count no longer matches them, unless it is 0
+            recorded = 0 if recorded == 0 else None
         flags = np.zeros(zs.n_components, dtype=bool)
         if pts is not None:
             flags = spurious_flags(zs, pts, faces=faces, ordered_contour=bool(ordered_contour), tau=q.get("tau"),
-                                   n_spurious=q.get("n_spurious"))
+                                   n_spurious=recorded)
         layers += [(t, i) for t in _zero_set_traces(go, dim, zs, flags, fit.degree, i == current, max_faces)]
     if normals is not None and pts is not None:
         layers.append((_normals_trace(go, pts, as_normals(normals, pts)), None))
