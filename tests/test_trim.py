@@ -177,6 +177,14 @@ def cup_file(tmp_path, rng):
     return ipfit.write_points(tmp_path / "cup.ply", points, normals), points
 
 
+def fit_cup(capsys, path, tmp_path) -> Path:
+    """``ipfit fit`` of the cup file at degree 4 (3L), the JSON alone; returns its path."""
+    code, _, err = run(capsys, ["fit", path, "--degree", "4", "--method", "3l", "--no-picture", "--no-zero-set",
+                                "-o", tmp_path / "fit"])
+    assert code == 0, err
+    return tmp_path / "fit.json"
+
+
 def read_mesh(path):
     import trimesh
 
@@ -229,10 +237,7 @@ def test_fit_refuses_trim_without_the_zero_set(cup_file, tmp_path, capsys):
 
 def test_mesh_trim_uses_the_recorded_data_or_points(cup_file, tmp_path, capsys):
     path, points = cup_file
-    code, _, err = run(capsys, ["fit", path, "--degree", "4", "--method", "3l", "--no-picture", "--no-zero-set",
-                                "-o", tmp_path / "fit"])
-    assert code == 0, err
-    result = tmp_path / "fit.json"
+    result = fit_cup(capsys, path, tmp_path)
     code, out, err = run(capsys, ["mesh", result, "-o", tmp_path / "whole.ply"])
     assert code == 0, err
     code, out, err = run(capsys, ["mesh", result, "-o", tmp_path / "recorded.ply", "--trim"])
@@ -291,15 +296,12 @@ def test_the_figure_draws_the_trimmed_zero_set(fitted_cup):
 
 
 def test_plot_trim_draws_less_of_the_closed_cup(cup_file, tmp_path, capsys):
-    # `ipfit plot --trim` draws what `ipfit mesh --trim` exports: the lid the fit added is gone,
-    # so fewer pixels are painted; the data comes from the result's recorded input.
+    # `ipfit plot --trim` draws what `ipfit mesh --trim` exports: the lid the fit added is gone
+    # (the inside wall shows through); the data comes from the result's recorded input.
     from matplotlib.image import imread
 
     path, points = cup_file
-    code, _, err = run(capsys, ["fit", path, "--degree", "4", "--method", "3l", "--no-picture", "--no-zero-set",
-                                "-o", tmp_path / "fit"])
-    assert code == 0, err
-    result = tmp_path / "fit.json"
+    result = fit_cup(capsys, path, tmp_path)
     code, out, err = run(capsys, ["plot", result, "-o", tmp_path / "whole.png"])
     assert code == 0, err
     code, out, err = run(capsys, ["plot", result, "-o", tmp_path / "trimmed.png", "--trim"])
@@ -342,14 +344,11 @@ def test_the_viewer_draws_the_trimmed_zero_set(fitted_cup):
 
 def test_view_trim_on_the_command_line(cup_file, tmp_path, capsys):
     path, points = cup_file
-    code, _, err = run(capsys, ["fit", path, "--degree", "4", "--method", "3l", "--no-picture", "--no-zero-set",
-                                "-o", tmp_path / "fit"])
-    assert code == 0, err
-    code, out, err = run(capsys, ["view", tmp_path / "fit.json", "-o", tmp_path / "v.html", "--trim"])
+    result = fit_cup(capsys, path, tmp_path)
+    code, out, err = run(capsys, ["view", result, "-o", tmp_path / "v.html", "--trim"])
     assert code == 0, err
     assert f"trimmed to within {default_trim_distance(points):.4g} of the data" in out, out
-    code, out, err = run(capsys, ["view", tmp_path / "fit.json", "-o", tmp_path / "bad.html", "--trim",
-                                  "--no-points"])
+    code, out, err = run(capsys, ["view", result, "-o", tmp_path / "bad.html", "--trim", "--no-points"])
     assert code == 2 and err.count("\n") == 1 and "--no-points" in err, err
     assert not (tmp_path / "bad.html").exists()
     # ipfit fit --html --trim: the page's surfaces are the trimmed ones, every vertex near the data
