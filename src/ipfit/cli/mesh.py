@@ -61,6 +61,31 @@ def add_trim_argument(parser: argparse.ArgumentParser, help: str = TRIM_HELP) ->
     parser.add_argument("--trim", nargs="?", const=TRIM_DEFAULT, type=trim_distance, metavar="DIST", help=help)
 
 
+TRIM_DRAW_HELP = ("draw only the zero set within DIST of the data (data units; default, or 'auto': 5 x the median "
+                  "point spacing, at least 2%% of the box diagonal)")
+
+
+def check_trim_with_points(args: argparse.Namespace) -> None:
+    """``--trim`` of a drawing command (plot, view) needs the data that ``--no-points`` leaves out."""
+    from ..exceptions import InvalidInputError
+
+    if args.trim is not None and args.no_points:
+        raise InvalidInputError("--trim: it trims to the data, which --no-points leaves out. Drop one of them.")
+
+
+def drawing_trim(trim, points) -> float | None:
+    """The distance a drawing is trimmed to for ``--trim``'s value (None: not trimmed)."""
+    from ..trim import default_trim_distance
+
+    if trim is None:
+        return None
+    return default_trim_distance(points) if trim == TRIM_DEFAULT else trim
+
+
+def trimmed_note(trim: float | None) -> str:
+    return "" if trim is None else f", zero sets trimmed to within {trim:.4g} of the data"
+
+
 def trim_for_export(zero_set, points, faces, trim):
     """The zero set trimmed to the data as ``--trim`` asks (``trim`` is its value), with its
     one-line summary; an error when nothing is left to write."""

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 
 from ._common import Outputs, finite_float, nonnegative_float, positive_int, recorded_sources
-from .mesh import TRIM_DEFAULT, add_trim_argument
+from .mesh import TRIM_DRAW_HELP, add_trim_argument
 
 NAME = "plot"
 HELP = "draw a result: the zero set of each degree with the data, smoothness vs degree, classic and 3L fits"
@@ -56,32 +56,27 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="3D: the axis drawn vertically (default z; scanned meshes like the bunny are y-up)")
     parser.add_argument("--dpi", type=_dpi, default=110,
                         help=f"resolution of raster output, 1 to {MAX_DPI} (default 110)")
-    add_trim_argument(parser, help="draw only the zero set within DIST of the data (data units; default, or "
-                                   "'auto': 5 x the median point spacing, at least 2%% of the box diagonal)")
+    add_trim_argument(parser, help=TRIM_DRAW_HELP)
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..exceptions import InvalidInputError
     from ..plotting import check_figure_path, plot_result
     from ..results import result_view
-    from ..trim import default_trim_distance
-    from .mesh import load_points, trim_data
+    from .mesh import check_trim_with_points, drawing_trim, load_points, trim_data, trimmed_note
 
     check_figure_path(args.output, "-o/--output")
-    if args.trim is not None and args.no_points:
-        raise InvalidInputError("--trim: it trims to the data, which --no-points leaves out. Drop one of them.")
+    check_trim_with_points(args)
     view = result_view(args.result)
     outputs = Outputs([args.output], inputs=[args.result, args.points, *recorded_sources(view.data)])
     points = faces = trim = None
     if args.trim is not None:
         points, faces = trim_data(view, args.points)
-        trim = default_trim_distance(points) if args.trim == TRIM_DEFAULT else args.trim
+        trim = drawing_trim(args.trim, points)
     elif not args.no_points:
         points, faces = load_points(args.points, view, NAME, missing="drawing the zero sets without the points")
     with outputs.writing() as stage:
         fig = plot_result(view.data, points=points, faces=faces, path=stage(args.output), title=args.title,
                           margin=args.margin, resolution=args.resolution, view=tuple(args.view), up=args.up,
                           dpi=args.dpi, trim=trim)
-    trimmed = "" if trim is None else f", zero sets trimmed to within {trim:.4g} of the data"
-    print(f"{args.output}: {len(fig.axes)} panel(s){trimmed}")
+    print(f"{args.output}: {len(fig.axes)} panel(s){trimmed_note(trim)}")
     return 0

@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 
 from ._common import nonnegative_float, positive_int
-from .mesh import TRIM_DEFAULT, add_trim_argument
+from .mesh import TRIM_DRAW_HELP, add_trim_argument, check_trim_with_points, drawing_trim, trimmed_note
 
 NAME = "view"
 HELP = "write an interactive HTML viewer of a result (rotate, zoom, switch degrees), offline"
@@ -41,19 +41,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--margin", type=nonnegative_float, default=0.25,
                         help="margin around the data's box, as a fraction of its longest side (default 0.25)")
     parser.add_argument("--open", action="store_true", help="open the page in the web browser")
-    add_trim_argument(parser, help="draw only the zero set within DIST of the data (data units; default, or "
-                                   "'auto': 5 x the median point spacing, at least 2%% of the box diagonal)")
+    add_trim_argument(parser, help=TRIM_DRAW_HELP)
 
 
 def run(args: argparse.Namespace) -> int:
     from ..exceptions import InvalidInputError
     from ..results import load_result
-    from ..trim import default_trim_distance
     from ..viewer import MAX_FACES, write_html
     from ._common import Outputs, load_input, recorded_sources
 
-    if args.trim is not None and args.no_points:
-        raise InvalidInputError("--trim: it trims to the data, which --no-points leaves out. Drop one of them.")
+    check_trim_with_points(args)
     data = load_result(args.result)
     output = Path(args.output) if args.output else Path(args.result).with_suffix(".html")
     outputs = Outputs([output], inputs=[args.result, args.points, *recorded_sources(data)])
@@ -76,18 +73,16 @@ def run(args: argparse.Namespace) -> int:
         if found is not None:
             points, faces = found.points, found.faces
             normals = None if args.no_normals else found.normals
-    trim = None
-    if args.trim is not None:
-        if points is None:
-            raise InvalidInputError("--trim: it needs the data to trim to, and the result's recorded input could "
-                                    "not be read. Pass the data with --points DATA.")
-        trim = default_trim_distance(points) if args.trim == TRIM_DEFAULT else args.trim
+    if args.trim is not None and points is None:
+        raise InvalidInputError("--trim: it needs the data to trim to, and the result's recorded input could "
+                                "not be read. Pass the data with --points DATA.")
+    trim = drawing_trim(args.trim, points)
     with outputs.writing() as stage:
         write_html(data, points, stage(output), faces=faces, normals=normals, title=args.title, up=args.up,
                    margin=args.margin, max_faces=args.max_faces or MAX_FACES, trim=trim)
     size = output.stat().st_size / 1e6
     print(f"{output}: {size:.1f} MB" + ("" if points is not None else " (without the data points)")
-          + ("" if trim is None else f", zero sets trimmed to within {trim:.4g} of the data"))
+          + trimmed_note(trim))
     if args.open:
         import webbrowser
 
