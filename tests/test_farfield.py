@@ -158,3 +158,27 @@ def test_gradient_of_the_fused_objective_matches_finite_differences(dim, degree,
     assert 0 < term(a)[0] < 0.5 * 2  # live, but not everywhere saturated
     _, grad, fd = value_grad_and_differences(obj, a)
     np.testing.assert_allclose(grad, fd, rtol=1e-5, atol=1e-6 * np.abs(fd).max())
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_bound_screens_members_that_lose_on_the_data_alone(dim, rng):
+    # A selection only needs to know which trials beat their bound: members whose distance
+    # already exceeds it get that distance (a lower bound), the others their exact value.
+    shape = synthetic.ellipse(200) if dim == 2 else synthetic.torus(400, rng=rng)
+    degree = shape.polynomial.degree
+    term = FarFieldTerm.from_data(shape.points, shape.normals, degree, weight=0.5)
+    plain = Objective(shape.points, shape.normals, degree)
+    fused = Objective(shape.points, shape.normals, degree, terms=[term])
+    pop = shape.polynomial.coefficients + 0.3 * rng.normal(size=(40, n_coefficients(dim, degree)))
+    exact, data = fused(pop), plain(pop)
+    bound = np.median(data) + 0.01 * rng.normal(size=len(pop))
+    screened = fused(pop, bound)
+    beaten = data > bound
+    assert 0 < beaten.sum() < len(pop)
+    np.testing.assert_allclose(screened[~beaten], exact[~beaten], rtol=1e-12)
+    np.testing.assert_allclose(screened[beaten], data[beaten], rtol=1e-12)
+    assert np.all(screened[beaten] > bound[beaten]) and np.all(exact >= screened - 1e-12)
+    # without a far-field term the bound changes nothing
+    np.testing.assert_array_equal(plain(pop, bound), data)
+    with pytest.raises(ipfit.InvalidInputError, match="bound: expected a \\(40,\\) array"):
+        fused(pop, bound[:3])

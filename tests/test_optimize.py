@@ -225,3 +225,33 @@ def test_polish_never_worse_and_normalises():
     assert polish(quadratic, np.zeros(3), maxiter=0, normalize=False).fun == quadratic(np.zeros(3))[0]
     with pytest.raises(InvalidInputError, match="precondition"):
         polish(quadratic, np.zeros(3), precondition=np.eye(2))
+
+
+def test_de_screening_gives_the_same_run_as_exact_values(rng):
+    # f = g + h with h >= 0: a screened objective may return g for a trial whose g already
+    # exceeds its parent's value; selection, and so the whole seeded run, stays the same.
+    def g(x):
+        return np.sum((x - 0.3) ** 2, axis=1)
+
+    def h(x):
+        return 0.01 * np.abs(np.sin(5 * x)).sum(axis=1)
+
+    calls = {"screened": 0}
+
+    def screened(x, bound=None):  # the initial population is evaluated without bounds
+        value = g(x)
+        if bound is None:
+            return value + h(x)
+        contend = value <= bound
+        calls["screened"] += int((~contend).sum())
+        value[contend] += h(x[contend])
+        return value
+
+    start = rng.uniform(-1, 1, (24, 4))
+    exact = DifferentialEvolution(lambda x: g(x) + h(x), start, maxiter=80, rng=5).solve()
+    fast = DifferentialEvolution(screened, start, maxiter=80, rng=5, screen=True).solve()
+    assert calls["screened"] > 80 * 24 // 10  # many trials never needed h
+    assert fast.fun == exact.fun and fast.nit == exact.nit and fast.nfev == exact.nfev
+    np.testing.assert_array_equal(fast.x, exact.x)
+    np.testing.assert_array_equal(fast.history, exact.history)
+    np.testing.assert_array_equal(fast.population_fun, exact.population_fun)

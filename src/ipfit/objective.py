@@ -70,6 +70,9 @@ _GRAD_FLOOR = 1e-100
 # in L2/L3 between the BLAS call and the reduction, while blocks stay tall enough for BLAS.
 _BLOCK_BYTES = 4 << 20
 _MIN_ROWS, _MAX_ROWS = 256, 4096
+# Smallest block when a small evaluation is split between the worker threads (a population of
+# hundreds of members keeps the products efficient on such blocks).
+_MIN_SPLIT_ROWS = 64
 # Below this many multiply-adds per evaluation (about a millisecond) the worker threads' hand-off
 # costs more than it saves: small evaluations run on the calling thread.
 _THREAD_WORK = 4_000_000
@@ -302,7 +305,7 @@ class Objective:
 
     def sums(self, population: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Per-member Σ_i Taubin term and Σ_i cosine over the points (the fused kernel)."""
-        sums = self._sums(self._population(population), far=False)
+        sums = self._sums(self._population(population))
         return sums[0], sums[1]
 
     def _design(self, lo: int, hi: int, dtype) -> NDArray:
@@ -311,24 +314,31 @@ class Objective:
             return self._m[lo:hi]
         return basis.monomials(self.u[lo:hi], self._exps).astype(dtype, copy=False)
 
-    def _sums(self, a: NDArray, far: bool) -> NDArray[np.float64]:
-        """(3, P): Σ Taubin, Σ cosine over the data, and the far-field term, in one pass."""
+    def _sums(self, a: NDArray, data: bool = True, far: bool = False) -> NDArray[np.float64]:
+        """(3, P): Σ Taubin, Σ cosine over the data, and the far-field term, in one pass (the
+        parts not asked for stay 0)."""
         n_members = a.shape[0]
         at = np.ascontiguousarray(a.T, dtype=self.dtype)  # (d, P)
         bt = basis.gradient_coefficients(at, self.dim, self.degree)  # (d_{g-1}, dim·P)
-        rows = self.block_rows(n_members)
-        jobs = [(False, lo, hi) for lo, hi in basis.point_blocks(self.n_points, rows)]
+        spans = [(False, self.n_points)] if data else []
         if far and self._far is not None:
-            jobs += [(True, lo, hi) for lo, hi in basis.point_blocks(len(self._far[0]), rows)]
-        workers = min(self.threads, len(jobs)) if _controller() is not None else 1
-        n_rows = sum(hi - lo for _, lo, hi in jobs)
-        if workers == 1 or n_rows * n_members * (self.n_coefficients + self.dim * self.n_lower) < _THREAD_WORK:
+            spans.append((True, len(self._far[0])))
+        n_rows = sum(n for _, n in spans)
+        workers = self.threads if _controller() is not None else 1
+        if n_rows * n_members * (self.n_coefficients + self.dim * self.n_lower) < _THREAD_WORK:
+            workers = 1
+        rows = self.block_rows(n_members)
+        if workers > 1:  # every part in at least as many blocks as workers, so each keeps them all busy
+            rows = min(rows, max(_MIN_SPLIT_ROWS, -(-max(n for _, n in spans) // workers)))
+        jobs = [(is_far, lo, hi) for is_far, n in spans for lo, hi in basis.point_blocks(n, rows)]
+        workers = min(workers, len(jobs))
+        if workers == 1:
             return self._partial_sums(at, bt, jobs, rows)
-        # Contiguous runs of whole blocks per worker, summed in a fixed order: reproducible.
-        cuts = [len(jobs) * k // workers for k in range(workers + 1)]
+        # Every workers-th block per worker (data and far-field blocks shared alike), summed in a
+        # fixed order: reproducible.
         with single_threaded_blas():
-            futures = [_pool(workers).submit(self._partial_sums, at, bt, jobs[lo:hi], rows)
-                       for lo, hi in zip(cuts[:-1], cuts[1:])]
+            futures = [_pool(workers).submit(self._partial_sums, at, bt, jobs[k::workers], rows)
+                       for k in range(workers)]
             parts = [f.result() for f in futures]
         total = parts[0]
         for part in parts[1:]:
@@ -355,7 +365,7 @@ class Objective:
 
     def measures(self, population: ArrayLike) -> Measures:
         """:class:`Measures` of every member, as (P,) float64 arrays (the data only, no terms)."""
-        sums = self._sums(self._population(population), far=False)
+        sums = self._sums(self._population(population))
         return self._measures(sums)
 
     def _measures(self, sums: NDArray[np.float64]) -> Measures:
@@ -363,13 +373,34 @@ class Objective:
         smooth = sums[1] / self.n_points
         return Measures(dissim, smooth, dissim + self.delta * (1.0 - smooth), self.delta)
 
-    def __call__(self, population: ArrayLike) -> NDArray[np.float64]:
-        """(P, d) coefficients → (P,) objective values (the distance plus any extra terms)."""
+    def __call__(self, population: ArrayLike, bound: ArrayLike | None = None) -> NDArray[np.float64]:
+        """(P, d) coefficients → (P,) objective values (the distance plus any extra terms).
+
+        ``bound`` ((P,), optional) are values the caller only needs to know whether each member
+        beats, as a DE selection does with the parents' values. A member whose distance (plus
+        the terms outside the compiled pass) already exceeds its bound then gets that value, a
+        lower bound of its objective since the far-field term is >= 0, and the far-field rows
+        are evaluated for the other members only. Most trials of a search lose to their
+        parents on the data alone, so the term then costs a fraction of its full price; every
+        value at or below its bound is exact.
+        """
         a = self._population(population)
-        sums = self._sums(a, far=True)
-        value = self._measures(sums).distance
-        if self._far is not None:
-            value = value + sums[2]
+        if bound is None or self._far is None:
+            sums = self._sums(a, far=True)
+            value = self._measures(sums).distance
+            if self._far is not None:
+                value = value + sums[2]
+            return self._plus_extra(a, value)
+        bound = np.asarray(bound, dtype=np.float64)
+        if bound.shape != (a.shape[0],):
+            raise error("bound", f"a ({a.shape[0]},) array, one value per member", f"shape {bound.shape}")
+        value = self._plus_extra(a, self._measures(self._sums(a)).distance)
+        contenders = np.flatnonzero(value <= bound)
+        if contenders.size:
+            value[contenders] += self._sums(a[contenders], data=False, far=True)[2]
+        return value
+
+    def _plus_extra(self, a: NDArray, value: NDArray[np.float64]) -> NDArray[np.float64]:
         for term in self._extra:
             value = value + np.asarray(term(a), dtype=np.float64)
         return value

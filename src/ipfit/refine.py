@@ -280,13 +280,13 @@ def _search(method, settings, obj_pop, starts: StartFits, r, r_inv, size, gen, c
         init = initial_population(start_y, size, min(n_started, size), gen)
     else:
         init = unit_rows(gen.standard_normal((size, d)))
-    func = (lambda y: obj_pop(to_a(y))) if whitened else obj_pop
+    func = (lambda y, bound=None: obj_pop(to_a(y), bound)) if whitened else obj_pop
     stage = method.split("+")[0]
     common = dict(maxiter=settings["iterations"], rng=gen, callback=_staged(callback, stage, to_a), project=unit_rows,
                   stall_generations=settings["stall_generations"], stall_tolerance=settings["stall_tolerance"])
     if stage == "de":
         solver = DifferentialEvolution(func, init, mutation=settings["mutation"],
-                                       recombination=settings["recombination"], **common)
+                                       recombination=settings["recombination"], screen=True, **common)
     else:
         solver = ParticleSwarm(func, init, chi=settings["chi"], c1=settings["c1"], c2=settings["c2"], **common)
     result = solver.solve()

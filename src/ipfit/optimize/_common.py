@@ -85,8 +85,8 @@ class PopulationSolver(abc.ABC):
         self.stopped = False
 
     # -- helpers ---------------------------------------------------------------------------
-    def _evaluate(self, pop: NDArray) -> NDArray[np.float64]:
-        values = np.asarray(self.func(pop), dtype=np.float64)
+    def _evaluate(self, pop: NDArray, bound: NDArray | None = None) -> NDArray[np.float64]:
+        values = np.asarray(self.func(pop) if bound is None else self.func(pop, bound), dtype=np.float64)
         if values.shape != (pop.shape[0],):
             raise error("func", f"a ({pop.shape[0]},) array of values for a ({pop.shape[0]}, d) population",
                         f"shape {values.shape}")

@@ -82,6 +82,13 @@ class DifferentialEvolution(PopulationSolver):
     stall_generations, stall_tolerance : int or None, float
         Stop early when the best value has improved by no more than ``stall_tolerance``
         (relative) over the last ``stall_generations`` generations (None: never).
+    screen : bool, default False
+        Call ``func(trial, bound)`` with each trial's parent value as its bound. Selection only
+        needs to know whether a trial beats its parent, so ``func`` may return, for a trial
+        worse than its bound, any value above the bound (a cheaper lower bound, as
+        :class:`~ipfit.objective.Objective` does); values at or below the bound must be exact.
+        The run is then the same as with exact values. The initial population is evaluated
+        with ``func(init)``.
 
     Notes
     -----
@@ -110,7 +117,8 @@ class DifferentialEvolution(PopulationSolver):
                  recombination: float = 0.9, maxiter: int = 500, rng=None,
                  callback: Callable[[OptimizeResult], Any] | None = None,
                  project: Callable[[NDArray], NDArray] | None = None, stall_generations: int | None = None,
-                 stall_tolerance: float = 1e-4) -> None:
+                 stall_tolerance: float = 1e-4, screen: bool = False) -> None:
+        self.screen = bool(screen)
         self.mutation = check_positive(mutation, "mutation")
         if self.mutation > 2:
             raise error("mutation", "a differential weight in (0, 2]", repr(mutation), "The paper uses 0.7.")
@@ -131,4 +139,5 @@ class DifferentialEvolution(PopulationSolver):
 
     def _step(self) -> None:
         trial = self.trial_vectors()
-        select(self.population, self.population_fun, trial, self._evaluate(trial))
+        bound = self.population_fun if self.screen else None
+        select(self.population, self.population_fun, trial, self._evaluate(trial, bound))
