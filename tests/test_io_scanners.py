@@ -2,6 +2,12 @@
 with the same libraries; subsampling on read; `ipfit fit` end to end on a GLB and a LAZ file."""
 
 import json
+import os
+import struct
+import subprocess
+import sys
+import textwrap
+import time
 
 import numpy as np
 import pytest
@@ -218,3 +224,92 @@ def test_fit_max_points_on_a_bundled_dataset(tmp_path, capsys):
     result = _fit(tmp_path, "bunny_res4", "--max-points", "100")
     assert result["selected_degree"] == 2 and result["input"]["n_points"] == 100
     assert "kept 100 of its 453 points" in capsys.readouterr().err
+
+
+# -- PCD headers that announce more than the file holds (the OOM of the slow fuzz test) -----------
+
+def _pcd_bytes(points=4, width=None, height=1, size="4 4 4", count="1 1 1", data="ascii", body=None):
+    """A hand-made PCD file with fields x y z; the header's values are taken as given."""
+    header = (f"# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\nFIELDS x y z\nSIZE {size}\nTYPE F F F\n"
+              f"COUNT {count}\nWIDTH {points if width is None else width}\nHEIGHT {height}\n"
+              f"VIEWPOINT 0 0 0 1 0 0 0\nPOINTS {points}\nDATA {data}\n").encode()
+    xyz = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=np.float32)
+    if body is None:
+        body = b"".join(f"{x} {y} {z}\n".encode() for x, y, z in xyz) if data == "ascii" else xyz.tobytes()
+    return header + body
+
+
+_BAD_PCD = {
+    "points_1e12_ascii": (_pcd_bytes(points=10**12), r"announces 1000000000000 points but only 4 lines"),
+    "points_1e12_binary": (_pcd_bytes(points=10**12, data="binary"), r"1000000000000 points of 12 bytes but"),
+    # 83,333,333,334 points of 12 bytes: 10**12 bytes, with size fields at their 32-bit maximum
+    "points_1e12_compressed": (_pcd_bytes(points=83_333_333_334, data="binary_compressed",
+                                          body=struct.pack("<II", 16, 2**32 - 1) + bytes(16)),
+                               r"announces 4294967295 bytes from 16 compressed bytes, but 83333333334 points"),
+    "compressed_size_beyond_file": (_pcd_bytes(data="binary_compressed",
+                                               body=struct.pack("<II", 2**32 - 1, 48) + bytes(48)),
+                                    r"4294967295 bytes of compressed data but the file holds only 48"),
+    "uncompressed_size_beyond_points": (_pcd_bytes(data="binary_compressed",
+                                                   body=struct.pack("<II", 40, 2**32 - 1) + bytes(40)),
+                                        r"announces 4294967295 bytes from 40 compressed bytes, but 4 points"),
+    "width_x_height_not_points": (_pcd_bytes(points=4, width=4, height=2), r"WIDTH 4 x HEIGHT 2 but POINTS 4"),
+    "count_1e9": (_pcd_bytes(count="1 1 1000000000"), r"COUNT 1 1 1000000000;.*at most 100000 values"),
+    "count_huge_binary": (_pcd_bytes(count="2147483648 1 1", data="binary"), r"COUNT 2147483648 1 1;"),
+    "size_3": (_pcd_bytes(size="4 4 3"), r"field 'z' .* SIZE 3; PCD fields are F of 4 or 8 bytes"),
+    "count_missing_a_field": (_pcd_bytes(count="1 1"), r"3 FIELDS, 3 SIZE, 3 TYPE and 2 COUNT values"),
+    "negative_points": (_pcd_bytes(points=-1, width=4), r"POINTS '-1' in the PCD header is not a whole number"),
+    "no_data_line": (_pcd_bytes().replace(b"DATA ascii\n", b""), r"no DATA line ends the PCD header"),
+}
+
+
+def test_hand_made_pcd_files_read(tmp_path):
+    """The builder of the bad headers below makes valid files when its values agree."""
+    for data in ("ascii", "binary"):
+        path = tmp_path / f"ok_{data}.pcd"
+        path.write_bytes(_pcd_bytes(data=data))
+        assert len(io.read_points(path, merge=False).points) == 4
+    path = tmp_path / "organized.pcd"  # WIDTH x HEIGHT = POINTS, an organized cloud
+    path.write_bytes(_pcd_bytes(points=4, width=2, height=2))
+    assert len(io.read_points(path, merge=False).points) == 4
+
+
+@pytest.mark.parametrize("case", sorted(_BAD_PCD))
+def test_pcd_header_announcing_more_than_the_file_raises_fast(tmp_path, case):
+    pytest.importorskip("pypcd4")
+    data, message = _BAD_PCD[case]
+    path = tmp_path / f"{case}.pcd"
+    path.write_bytes(data)
+    start = time.perf_counter()
+    with pytest.raises(ReadError, match=message) as exc_info:
+        io.read_points(path)
+    assert time.perf_counter() - start < 0.5
+    text = str(exc_info.value)
+    assert text.startswith(str(path)) and "\n" not in text and len(text) < 300
+
+
+def test_pcd_header_checks_allocate_nothing(tmp_path):
+    """Under a 1.5 GB address-space limit every bad header gives a ReadError, not a MemoryError
+    (which read_points would also turn into a ReadError) nor a kill."""
+    pytest.importorskip("pypcd4")
+    pytest.importorskip("resource")  # the limit is POSIX only
+    for case, (data, _) in _BAD_PCD.items():
+        (tmp_path / f"{case}.pcd").write_bytes(data)
+    script = textwrap.dedent(f"""
+        import resource, sys
+        from pathlib import Path
+        import pypcd4
+        from ipfit import io
+        from ipfit.exceptions import ReadError
+        resource.setrlimit(resource.RLIMIT_AS, ({int(1.5 * 2**30)}, {int(1.5 * 2**30)}))
+        for path in sorted(Path({str(tmp_path)!r}).glob("*.pcd")):
+            try:
+                io.read_points(path)
+            except ReadError as exc:
+                assert "more data than fits in memory" not in str(exc), exc
+            else:
+                sys.exit(f"{{path}} was read")
+        print("ok")
+    """)
+    env = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1", MKL_NUM_THREADS="1")
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120, env=env)
+    assert done.returncode == 0 and done.stdout.strip() == "ok", done.stderr[-2000:]

@@ -10,6 +10,7 @@ normals extension (``nor:normalX``...).
 from __future__ import annotations
 
 import io as _io
+import re
 import struct
 from pathlib import Path
 
@@ -112,8 +113,127 @@ def read_las(path: Path, raw: bytes) -> Raw:
     return Raw(points, normals)
 
 
+# pypcd4 trusts its header: COUNT 2147483648 makes it build a list of 2**31 field names (tens of
+# GB), POINTS sizes a zeroed array and the compressed-size fields an LZF buffer. The header is
+# read here first, the way pypcd4 reads it, and checked against the file.
+_PCD_HEADER_LINE = re.compile(r"(\w+)\s+([\w\s\.\-?\d+\.?\d*]+)")  # pypcd4's HEADER_PATTERN
+_PCD_MAX_HEADER_LINES = 10  # pypcd4 stops reading the header after 10 lines
+_PCD_TYPES = {"F": (4, 8), "U": (1, 2, 4, 8), "I": (1, 2, 4, 8)}
+#: Values per point (the sum of COUNT) accepted; PCL's widest descriptors hold about 2,000.
+_PCD_MAX_COLUMNS = 100_000
+#: LZF turns 3 bytes into at most 264: a larger announced ratio is a corrupted size field.
+_LZF_MAX_RATIO = 100
+_PCD_ENCODINGS = ("ascii", "binary", "binary_compressed", "binaryscompressed")
+
+
+def _pcd_number(text: str) -> str:
+    return text if len(text) <= 20 else f"{text[:8]}... ({len(text)} digits)"
+
+
+def _pcd_header(path: Path, raw: bytes) -> tuple[dict[str, list[str]], int]:
+    """The PCD header's entries {key (lower case): values} as pypcd4 reads them, and the offset
+    of the data after the DATA line."""
+    lines, at = [], 0
+    while at < len(raw) and len(lines) < _PCD_MAX_HEADER_LINES:
+        end = raw.find(b"\n", at)
+        end = len(raw) if end < 0 else end + 1
+        try:
+            line = raw[at:end].decode("utf-8").strip()
+        except UnicodeDecodeError:
+            raise ReadError(f"{path}: the PCD header is not text (line {len(lines) + 1} is binary). "
+                            "The file is corrupted or not a PCD file.") from None
+        at = end
+        if line.startswith("#") or not line:
+            continue
+        lines.append(line)
+        if line.startswith("DATA"):
+            break
+    if not lines or not lines[-1].startswith("DATA"):
+        raise ReadError(f"{path}: no DATA line ends the PCD header (within its first {_PCD_MAX_HEADER_LINES} "
+                        "lines). The file is corrupted or not a PCD file.")
+    header: dict[str, list[str]] = {}
+    for line in lines:
+        match = _PCD_HEADER_LINE.match(line)
+        if match is not None:
+            header[match.group(1).lower()] = match.group(2).split()
+    last = _PCD_HEADER_LINE.match(lines[-1])
+    if last is None or last.group(1).lower() != "data" or not header.get("data"):
+        raise ReadError(f"{path}: the PCD header ends with {lines[-1][:40]!r}, not 'DATA ascii', 'DATA binary' "
+                        "or 'DATA binary_compressed'. The file is corrupted.")
+    return header, at
+
+
+def _pcd_integers(path: Path, header: dict[str, list[str]], key: str) -> list[int]:
+    if not header.get(key):
+        raise ReadError(f"{path}: the PCD header has no {key.upper()} line. The file is corrupted or not a PCD file.")
+    values = []
+    for text in header[key]:
+        if not (text.isascii() and text.isdigit() and len(text) <= 30):
+            raise ReadError(f"{path}: {key.upper()} {_pcd_number(text)!r} in the PCD header is not a whole number "
+                            "of 0 or more. The file is corrupted.")
+        values.append(int(text))
+    return values
+
+
+def _check_pcd_structure(path: Path, raw: bytes) -> None:
+    """Check the sizes a PCD header announces against the file, before pypcd4 allocates them."""
+    header, start = _pcd_header(path, raw)
+    fields = header.get("fields") or []
+    sizes, counts = _pcd_integers(path, header, "size"), _pcd_integers(path, header, "count")
+    types = header.get("type") or []
+    if not fields or not len(fields) == len(sizes) == len(types) == len(counts):
+        raise ReadError(f"{path}: the PCD header lists {len(fields)} FIELDS, {len(sizes)} SIZE, {len(types)} TYPE "
+                        f"and {len(counts)} COUNT values; they must be as many, one per field. "
+                        "The file is corrupted.")
+    for name, size, kind in zip(fields, sizes, types):
+        if size not in _PCD_TYPES.get(kind, ()):
+            raise ReadError(f"{path}: field {name[:40]!r} of the PCD header has TYPE {kind[:10]!r} and SIZE "
+                            f"{_pcd_number(str(size))}; PCD fields are F of 4 or 8 bytes, or U and I of 1, 2, 4 "
+                            "or 8. The file is corrupted.")
+    if min(counts) < 1 or sum(counts) > _PCD_MAX_COLUMNS:
+        raise ReadError(f"{path}: the PCD header gives COUNT {' '.join(_pcd_number(str(c)) for c in counts[:8])}"
+                        f"{' ...' if len(counts) > 8 else ''}; each field needs a COUNT of at least 1 and at most "
+                        f"{_PCD_MAX_COLUMNS} values per point in all. The file is corrupted.")
+    width, points = _pcd_integers(path, header, "width")[0], _pcd_integers(path, header, "points")[0]
+    height = _pcd_integers(path, header, "height")[0] if "height" in header else 1
+    if width * height != points:
+        raise ReadError(f"{path}: the PCD header announces WIDTH {_pcd_number(str(width))} x HEIGHT "
+                        f"{_pcd_number(str(height))} but POINTS {_pcd_number(str(points))}; they must agree. "
+                        "The file is corrupted.")
+    encoding = header["data"][0]
+    if encoding not in _PCD_ENCODINGS:
+        raise ReadError(f"{path}: 'DATA {encoding[:40]}' in the PCD header; the data must be ascii, binary or "
+                        "binary_compressed. The file is corrupted.")
+    if points == 0:
+        return
+    record = sum(size * count for size, count in zip(sizes, counts))
+    needed, available = points * record, len(raw) - start
+    shown = _pcd_number(str(points))
+    if encoding == "ascii":
+        lines = raw.count(b"\n", start) + (1 if available and not raw.endswith(b"\n") else 0)
+        if points > lines:
+            raise ReadError(f"{path}: the PCD header announces {shown} points but only {lines} lines of data "
+                            "follow. The file is truncated or corrupted.")
+    elif encoding == "binary":
+        if needed > available:
+            raise ReadError(f"{path}: the PCD header announces {shown} points of {record} bytes but the file holds "
+                            f"only {available} bytes of point data. The file is truncated or corrupted.")
+    else:
+        if available < 8:
+            raise ReadError(f"{path}: the compressed PCD data has no size fields. The file is truncated.")
+        compressed, uncompressed = struct.unpack_from("II", raw, start)
+        if compressed > available - 8:
+            raise ReadError(f"{path}: the PCD header announces {compressed} bytes of compressed data but the file "
+                            f"holds only {available - 8}. The file is truncated or corrupted.")
+        if uncompressed != needed or uncompressed > compressed * _LZF_MAX_RATIO:
+            raise ReadError(f"{path}: the compressed PCD data announces {uncompressed} bytes from {compressed} "
+                            f"compressed bytes, but {shown} points of {record} bytes are {needed}. "
+                            "The file is corrupted.")
+
+
 def read_pcd(path: Path, raw: bytes) -> Raw:
     pypcd4 = optional_module("pypcd4", path, "PCD")
+    _check_pcd_structure(path, raw)
     cloud = pypcd4.PointCloud.from_fileobj(_io.BytesIO(raw))
     fields = list(cloud.fields)
     if not {"x", "y", "z"} <= set(fields):
