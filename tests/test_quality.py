@@ -35,9 +35,22 @@ def test_perfect_sphere_fit_against_mesh_faces():
     assert q.reference == "faces"
     assert q.f_score == 1.0 and q.n_spurious == 0 and q.closed and q.n_components == 1
     assert q.chamfer < 0.01  # the icosphere's flat faces are within 0.01 of the unit sphere
-    # against the 162 sparse vertices alone, the same perfect fit scores low precision
+    # Against the 162 bare vertices the sphere between them is up to half an edge from the
+    # nearest one (more than τ): the gap allowance keeps the perfect fit perfect ...
     sparse = quality(poly, mesh.vertices, resolution=64)
-    assert sparse.recall == 1.0 and sparse.precision < 0.8
+    assert sparse.reference == "points" and sparse.tau < 0.5 * mesh.edges_unique_length.min()
+    assert sparse.recall == 1.0 and sparse.precision == 1.0
+    # ... where τ alone would not (the bias the allowance removes) ...
+    from scipy.spatial import cKDTree
+    from ipfit.zeroset import extract_zero_set
+
+    samples = extract_zero_set(poly, points=mesh.vertices, resolution=64).sample(sparse.tau).points
+    assert np.mean(cKDTree(mesh.vertices).query(samples)[0] > sparse.tau) > 0.2
+    # ... while a sphere two edges out is still imprecise (and misses every point)
+    edge = float(mesh.edges_unique_length.max())
+    bigger = synthetic.sphere(radius=1 + 2 * edge).polynomial
+    off = quality(bigger, mesh.vertices, resolution=64)
+    assert off.precision == 0.0 and off.recall == 0.0
 
 
 def test_ordered_contour_reference():
@@ -45,7 +58,8 @@ def test_ordered_contour_reference():
     poly = shape.polynomial
     q = quality(poly, shape.points, ordered_contour=True)
     assert q.reference == "contour" and q.f_score == 1.0
-    assert quality(poly, shape.points).precision < 0.9
+    # the bare points agree on this perfect fit, thanks to their gap allowance
+    assert quality(poly, shape.points).precision == 1.0
 
 
 def test_extra_component_in_the_box_is_spurious():

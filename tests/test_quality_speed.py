@@ -63,9 +63,14 @@ def brute_measures(zs, points, tau, spacing, faces=None, contour=None):
     elif contour is not None:
         d_zero = brute_segments(samples.points, contour, np.roll(contour, -1, axis=0)).min(axis=1)
     else:
-        d_zero = np.linalg.norm(samples.points[:, None] - points[None], axis=-1).min(axis=1)
+        d_all = np.linalg.norm(samples.points[:, None] - points[None], axis=-1)
+        d_zero = d_all.min(axis=1)
     recall = float(np.mean(d_data <= tau))
-    precision = float(samples.weights[d_zero <= tau].sum() / samples.weights.sum())
+    within = d_zero <= tau
+    if faces is None and contour is None:  # a bare cloud: the gap allowance, by brute force
+        gaps = np.sort(np.linalg.norm(points[:, None] - points[None], axis=-1), axis=1)[:, points.shape[1]]
+        within = d_zero <= np.sqrt(tau**2 + gaps[d_all.argmin(axis=1)] ** 2)
+    precision = float(samples.weights[within].sum() / samples.weights.sum())
     nearest = np.full(zs.n_components, np.inf)
     np.minimum.at(nearest, samples.labels, d_zero)
     return recall, precision, nearest > tau, d_data, d_zero, samples

@@ -85,3 +85,29 @@ def nearest_candidates(query, idx, n, elements, a, b, c, upper, triangles):  # p
             best = min(best, d2)
         out[i] = np.sqrt(best)
     return out
+
+
+@njit(**_JIT)
+def farthest_points(candidates, reach, first, chosen):  # pragma: no cover - compiled
+    """Farthest-point selection with gaps relative to ``reach``: fills ``chosen`` with indices
+    into ``candidates``, starting at ``first``; each next pick maximises the smallest
+    ||c − chosen|| / reach(c) (the first such index on ties, like ``np.argmax``)."""
+    n, dim = candidates.shape
+    gap = np.full(n, np.inf)
+    pick = first
+    for j in range(chosen.shape[0]):
+        chosen[j] = pick
+        best = -1.0
+        following = 0
+        for i in range(n):
+            s = 0.0
+            for k in range(dim):
+                t = candidates[i, k] - candidates[pick, k]
+                s += t * t
+            g = np.sqrt(s) / reach[i]
+            if g < gap[i]:
+                gap[i] = g
+            if gap[i] > best:
+                best = gap[i]
+                following = i
+        pick = following

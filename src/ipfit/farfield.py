@@ -133,13 +133,11 @@ def _spread(candidates: NDArray[np.float64], reach: NDArray[np.float64], count: 
     # alone put nearly all of them in the band just outside the clearance).
     if count >= len(candidates):
         return np.arange(len(candidates))
+    from ._distance_kernels import farthest_points
+
     chosen = np.empty(count, dtype=np.int64)
-    gap = np.full(len(candidates), np.inf)
-    pick = int(np.argmin(reach))
-    for j in range(count):
-        chosen[j] = pick
-        np.minimum(gap, np.linalg.norm(candidates - candidates[pick], axis=1) / reach, out=gap)
-        pick = int(np.argmax(gap))
+    farthest_points(np.ascontiguousarray(candidates, dtype=np.float64), np.ascontiguousarray(reach, dtype=np.float64),
+                    int(np.argmin(reach)), chosen)
     return np.sort(chosen)
 
 

@@ -6,7 +6,12 @@ With a tolerance τ (default 2 % of the data's bounding-box diagonal):
 * **precision**: the fraction of the zero set (by length or area) within τ of the data's
   shape. The shape is the data's faces for a mesh, its polyline for an
   ordered contour, and the points themselves for a bare cloud: measured against the sparse
-  vertices of a mesh alone, even a perfect fit would score low;
+  vertices of a mesh alone, even a perfect fit would score low. For a bare cloud the surface
+  between the points is unknown, and the exact zero set passes up to half a gap from every
+  point, so a zero-set sample counts as within τ of the shape when its nearest data point is
+  at most √(τ² + s²) away, s being that point's local spacing (the distance to its
+  ``dim``-th nearest neighbour): τ where the cloud is dense, more only where its gaps are
+  wider than τ (a 600-point sphere's exact polynomial scored F = 0.84 with τ alone);
 * **f_score**: their harmonic mean;
 * **chamfer**: the symmetric Chamfer distance, the mean of the two mean nearest distances
   (data → zero set and zero set → shape);
@@ -252,6 +257,23 @@ def _points_target(pts: NDArray, tau: float) -> _Target:
     return _Target(Samples(pts, np.ones(n), np.full(n, -1), np.arange(n)), "points", tau=tau)
 
 
+def _within_gaps(ref: _Target, query: NDArray, d_zero: NDArray, tau: float) -> NDArray[np.bool_]:
+    """Zero-set samples within τ of the surface a bare cloud samples: within √(τ² + s²) of
+    their nearest data point, s its local spacing (see the module notes)."""
+    from .sampling import point_spacing
+
+    within = d_zero <= tau
+    points = ref.samples.points
+    spacing = point_spacing(points, k=points.shape[1])
+    reach = math.sqrt(tau**2 + float(spacing.max(initial=0.0)) ** 2)
+    maybe = np.flatnonzero(~within)
+    if maybe.size and reach > tau:
+        d, nearest = ref.tree.query(query[maybe], distance_upper_bound=reach, workers=_WORKERS)
+        found = np.isfinite(d)
+        within[maybe[found]] = d[found] <= np.sqrt(tau**2 + spacing[nearest[found]] ** 2)
+    return within
+
+
 def _contour_target(points: NDArray, spacing: float, max_samples: int, tau: float) -> _Target:
     starts, ends = points[:-1], points[1:]
     gaps = np.linalg.norm(ends - starts, axis=1)
@@ -408,13 +430,14 @@ def _measure(model, points, *, faces=None, ordered_contour=False, tau=None, tau_
     d_data = target.distance(pts)
     d_zero = ref.distance(samples.points)
     recall = float(np.mean(d_data <= tau))
+    within = _within_gaps(ref, samples.points, d_zero, tau) if reference == "points" else d_zero <= tau
     w = samples.weights
     total = float(w.sum())
     if total > 0:
-        precision = float(w[d_zero <= tau].sum() / total)
+        precision = float(w[within].sum() / total)
         zero_to_data = float(np.dot(w, d_zero) / total)
     else:  # a zero set of degenerate (zero-length) pieces: weigh the samples alike
-        precision = float(np.mean(d_zero <= tau))
+        precision = float(np.mean(within))
         zero_to_data = float(d_zero.mean())
     data_to_zero = float(d_data.mean())
     f_score = 0.0 if precision + recall == 0 else 2 * precision * recall / (precision + recall)

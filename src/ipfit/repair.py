@@ -72,9 +72,9 @@ def _stray_distance(tau: float, pts, faces, ordered_contour) -> float:
         return tau
     # A bare cloud: between its points even a perfect surface is up to about a spacing away from
     # the nearest one; only what lies beyond that is stray.
-    from scipy.spatial import cKDTree
+    from .sampling import point_spacing
 
-    return max(tau, 2 * float(np.median(cKDTree(pts).query(pts, k=2)[0][:, 1])))
+    return max(tau, 2 * float(np.median(point_spacing(pts))))
 
 
 def repair(entry: DegreeResult, refit: Callable[..., DegreeResult], options: SearchOptions, pts, faces,

@@ -15,7 +15,35 @@ from numpy.typing import ArrayLike, NDArray
 
 from ._validation import as_points, check_int, check_rng
 
-__all__ = ["spread_subsample"]
+__all__ = ["spread_subsample", "point_spacing"]
+
+
+def point_spacing(points: ArrayLike, k: int = 1) -> NDArray[np.float64]:
+    """Each point's distance to its ``k``-th nearest other point (0 for a repeated point when
+    ``k`` = 1, and for every point of a cloud of at most ``k`` points).
+
+    A fit measures and trims the same cloud many times, so the last few results are kept.
+
+    >>> point_spacing([[0.0, 0.0], [1.0, 0.0], [3.0, 0.0]]).tolist()
+    [1.0, 1.0, 2.0]
+    """
+    pts = as_points(points)
+    k = check_int(k, "k", minimum=1)
+    key = (pts.shape, k, hash(pts.tobytes()))
+    if key not in _SPACING:
+        from scipy.spatial import cKDTree
+
+        if len(pts) <= k:
+            spacing = np.zeros(len(pts))
+        else:
+            spacing = cKDTree(pts).query(pts, k=[k + 1], workers=-1)[0][:, 0]
+        while len(_SPACING) >= 4:
+            _SPACING.pop(next(iter(_SPACING)))
+        _SPACING[key] = spacing
+    return _SPACING[key].copy()
+
+
+_SPACING: dict = {}
 
 
 def _occupied(keys_of, size: float) -> tuple[int, NDArray[np.int64]]:

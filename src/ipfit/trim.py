@@ -70,9 +70,9 @@ class Trim:
 
 
 def _spacing(pts: NDArray) -> float:
-    from scipy.spatial import cKDTree
+    from .sampling import point_spacing
 
-    nearest = cKDTree(pts).query(pts, k=2, workers=-1)[0][:, 1]
+    nearest = point_spacing(pts)
     nearest = nearest[nearest > 0]  # repeated points say nothing about the sampling density
     if nearest.size == 0:
         raise error("points", "points with some extent", "identical points", "Pass the trim distance explicitly.")
