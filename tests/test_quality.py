@@ -172,3 +172,29 @@ def test_far_distances_enter_the_chamfer_mean():
     assert q.recall == 0 and q.precision == 0 and q.n_spurious == 1
     assert q.data_to_zero_set == pytest.approx(0.8, abs=0.005)
     assert q.zero_set_to_data == pytest.approx(0.8, abs=0.005)
+
+
+def test_measurements_are_reused_only_for_the_same_polynomial_data_and_options(monkeypatch):
+    import importlib
+
+    from ipfit.quality import stray_samples
+
+    quality_module = importlib.import_module("ipfit.quality")  # the package's `quality` is the function
+
+    shape = synthetic.circle(60)
+    wide = synthetic.from_terms(2, 2, {(2, 0): 1.0, (0, 2): 1.0, (0, 0): -1.3})  # radius 1.14
+    extractions = []
+    real = quality_module.extract_zero_set
+    monkeypatch.setattr(quality_module, "extract_zero_set", lambda *a, **k: extractions.append(1) or real(*a, **k))
+    q = quality(wide, shape.points)
+    assert len(extractions) == 1 and q.recall == 0.0
+    # the repair's stray samples of the degree just judged: the same measurement
+    assert len(stray_samples(wide, shape.points)) > 0 and len(extractions) == 1
+    assert quality(wide, shape.points) == q and len(extractions) == 1
+    # other options, other points, points changed in place: measured again
+    assert quality(wide, shape.points, tau=0.2).recall == 1.0 and len(extractions) == 2
+    assert quality(wide, 1.14 * shape.points).recall == 1.0 and len(extractions) == 3
+    moved = shape.points.copy()  # equal data, another array: the same measurement
+    assert quality(wide, moved) == q and len(extractions) == 3
+    moved *= 1.14
+    assert quality(wide, moved).recall == 1.0 and len(extractions) == 4

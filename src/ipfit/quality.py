@@ -370,9 +370,42 @@ def stray_samples(model: ImplicitPolynomial | ZeroSet, points: ArrayLike, *, mos
     return far[:: max(1, -(-len(far) // check_int(most, "most", minimum=1)))]
 
 
-def _measure(model, points, *, faces=None, ordered_contour=False, tau=None, tau_fraction=DEFAULT_TAU_FRACTION,
-             bounds=None, margin=0.25, resolution=None, spacing=None,
-             max_samples=DEFAULT_MAX_SAMPLES, details: bool = False):
+def _measure(model, points, *, details: bool = False, **options):
+    """(Quality, spurious flags) or, with ``details``, (None, flags, zero-set samples, their
+    distances to the shape, τ); the last few measurements of polynomials are kept, so that a
+    repair's stray samples reuse the measurement that judged its degree."""
+    unknown = set(options) - set(_MEASURE_DEFAULTS)
+    if unknown:
+        raise TypeError(f"unexpected keyword argument {sorted(unknown)[0]!r}")
+    options = {**_MEASURE_DEFAULTS, **options, "ordered_contour": bool(options.get("ordered_contour"))}
+    key = None
+    if isinstance(model, ImplicitPolynomial):
+        pts = np.ascontiguousarray(points, dtype=np.float64) if isinstance(points, np.ndarray) else None
+        if pts is not None:
+            faces = options.get("faces")
+            key = (model.coefficients.tobytes(), model.dim, model.normalization.center.tobytes(),
+                   model.normalization.scale, pts.shape, hash(pts.tobytes()),
+                   None if faces is None else hash(np.ascontiguousarray(faces).tobytes()),
+                   repr(sorted((k, v) for k, v in options.items() if k != "faces")))
+    if key is None or key not in _MEASURED:
+        found = _measure_now(model, points, **options)
+        if key is None:
+            return (None, *found[1:]) if details else found[:2]
+        while len(_MEASURED) >= 4:
+            _MEASURED.pop(next(iter(_MEASURED)))
+        _MEASURED[key] = found
+    q, flags, samples, d_zero, tau = _MEASURED[key]
+    return (None, flags, samples, d_zero, tau) if details else (q, flags)
+
+
+_MEASURED: dict = {}
+_MEASURE_DEFAULTS = dict(faces=None, ordered_contour=False, tau=None, tau_fraction=DEFAULT_TAU_FRACTION, bounds=None,
+                         margin=0.25, resolution=None, spacing=None, max_samples=DEFAULT_MAX_SAMPLES)
+
+
+def _measure_now(model, points, *, faces, ordered_contour, tau, tau_fraction, bounds, margin, resolution, spacing,
+                 max_samples):
+    """(Quality, spurious flags, zero-set samples, their distances to the shape, τ)."""
     pts = as_points(points, min_points=2)
     dim = pts.shape[1]
     if isinstance(model, ImplicitPolynomial):
@@ -414,12 +447,11 @@ def _measure(model, points, *, faces=None, ordered_contour=False, tau=None, tau_
 
     n_components = zs.n_components
     if zs.is_empty:
-        if details:
-            return None, np.zeros(0, dtype=bool), Samples(np.empty((0, dim)), np.empty(0), np.empty(0, dtype=np.int64),
-                                                          np.empty(0, dtype=np.int64)), np.empty(0), tau
         return (Quality(recall=0.0, precision=0.0, f_score=0.0, chamfer=math.inf, n_components=0, n_spurious=0,
                         closed=False, tau=tau, data_to_zero_set=math.inf, zero_set_to_data=math.inf,
-                        grid_step=zs.step, reference=reference), np.zeros(0, dtype=bool))
+                        grid_step=zs.step, reference=reference), np.zeros(0, dtype=bool),
+                Samples(np.empty((0, dim)), np.empty(0), np.empty(0, dtype=np.int64), np.empty(0, dtype=np.int64)),
+                np.empty(0), tau)
 
     samples = zs.sample(spacing, max_samples=max_samples)
     if dim == 2:
@@ -444,14 +476,12 @@ def _measure(model, points, *, faces=None, ordered_contour=False, tau=None, tau_
     nearest = np.full(n_components, np.inf)
     np.minimum.at(nearest, samples.labels, d_zero)
     flags = nearest > tau
-    if details:
-        return None, flags, samples, d_zero, tau
     return (Quality(recall=recall, precision=precision, f_score=float(f_score),
                     chamfer=0.5 * (data_to_zero + zero_to_data), n_components=n_components,
                     n_spurious=int(flags.sum()), closed=zs.closed, tau=tau, data_to_zero_set=data_to_zero,
                     zero_set_to_data=zero_to_data, grid_step=zs.step, reference=reference,
                     spurious=_spurious_components(samples, nearest, tau),
-                    n_open=int((zs.component_open & ~flags).sum())), flags)
+                    n_open=int((zs.component_open & ~flags).sum())), flags, samples, d_zero, tau)
 
 
 def _spurious_components(samples, nearest: NDArray, tau: float) -> tuple[dict, ...]:
