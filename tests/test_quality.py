@@ -196,5 +196,5 @@ def test_measurements_are_reused_only_for_the_same_polynomial_data_and_options(m
     assert quality(wide, 1.14 * shape.points).recall == 1.0 and len(extractions) == 3
     moved = shape.points.copy()  # equal data, another array: the same measurement
     assert quality(wide, moved) == q and len(extractions) == 3
-    moved *= 1.14
-    assert quality(wide, moved).recall == 1.0 and len(extractions) == 4
+    moved += 0.5  # changed in place
+    assert quality(wide, moved).recall > 0.0 and len(extractions) == 4
