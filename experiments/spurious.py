@@ -118,7 +118,9 @@ def markdown(rows: list[dict], iterations: int) -> str:
         "pipeline selected; 3L and the paper's DE (`refine(method='de', options=PAPER)`) are fitted at that "
         "degree; the last cells are the paper's whole pipeline at the degree it selected (`ipfit fit --paper`). "
         "3D scans with more than "
-        f"{SUBSAMPLE} points are subsampled to {SUBSAMPLE} (seed 0).",
+        f"{SUBSAMPLE} points are subsampled to {SUBSAMPLE} (seed 0). Those subsamples and the generated 3D "
+        "shapes are bare clouds: there a zero-set sample counts as within τ of the shape when it is within "
+        "√(τ² + s²) of its nearest point, s that point's local spacing (see `ipfit.quality`).",
         "",
         "The default (recommended) pipeline: `fit_adaptive(points, normals)` = `ipfit.RECOMMENDED`: DE + "
         "L-BFGS polish on the paper's distance plus the far-field term, started from every linear fit, the "
@@ -153,7 +155,13 @@ def main(argv=None) -> int:
     parser.add_argument("--out", default="docs/spurious.md")
     parser.add_argument("--iterations", type=int, default=500)
     parser.add_argument("--quick", action="store_true", help="a few shapes, for a smoke test")
+    parser.add_argument("--from-json", help="rewrite the Markdown from stored rows instead of fitting")
     args = parser.parse_args(argv)
+    if args.from_json:
+        rows = json.loads(Path(args.from_json).read_text(encoding="utf-8"))
+        Path(args.out).write_text(markdown(rows, args.iterations), encoding="utf-8")
+        print(f"wrote {args.out}")
+        return 0
     rows = run(args.iterations, args.quick)
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)

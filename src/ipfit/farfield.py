@@ -12,7 +12,11 @@ carry their signed distance to the data (sign from the nearest point's normal):
   distance is a small fraction of the sample's distance to the data). The term uses at most
   a few hundred samples chosen once per fit (:func:`term_samples`), and
   :class:`~ipfit.objective.Objective` evaluates them in the same compiled pass as the data,
-  so the term costs about as much as that many extra data points.
+  so the term costs about as much as that many extra data points. In a DE search it is
+  evaluated only for the trials whose data distance does not already lose to their parent
+  (``Objective(population, bound)``): 15-40 % of them, so the term takes 8-25 % of the
+  search time on the bundled datasets (``benchmarks/bench_farfield.py``,
+  ``docs/farfield-cost.md``).
 """
 
 from __future__ import annotations
@@ -107,8 +111,9 @@ def term_sample_count(n_points: int, dim: int) -> int:
     [:data:`TERM_SAMPLES_MIN`, :data:`TERM_SAMPLES_MAX`] (48-512 in 2D, 96-2,400 in 3D).
 
     Why: a sample costs what a data point costs in the fused pass, so the term's share of
-    the objective time is M/(N + M); in 2D the cap keeps it at or under 30 % from 1,200 points
-    on. In 3D the cap is higher: with 768 samples the bunny (3,000 points, the size of the
+    one full evaluation is M/(N + M); in 2D the cap keeps it at or under 30 % from 1,200 points
+    on, and a DE search evaluates the samples for its contending trials only (see the module
+    notes). In 3D the cap is higher: with 768 samples the bunny (3,000 points, the size of the
     recommended search subsample) grew spurious blobs at degrees 6 and 8 and the rule fell back
     to degree 4 (F = 0.756); with 2,400 every degree was clean and degree 8 was selected
     (F = 0.987), as with the old 2,211-node grid. Fewer samples per point were measured to let the search grow
