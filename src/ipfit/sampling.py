@@ -1,11 +1,13 @@
-"""Well-spread subsamples of a point cloud.
+"""Well-spread subsamples of a point cloud, and its local spacing.
 
 The population search of a refinement only needs to see the shape, not every point: on a
 few thousand points spread evenly over it, DE/PSO rank candidates the same way as on the
 full cloud, at a fraction of the cost; the polish and every reported measure then use all
 points. :func:`spread_subsample` picks one point per occupied voxel of a grid whose cell size
 is chosen so that about ``n`` cells are occupied, which keeps sparse regions represented
-(unlike a uniform random draw, which follows the sampling density).
+(unlike a uniform random draw, which follows the sampling density). :func:`point_spacing`
+gives each point's distance to its k-th nearest neighbour: the sampling gaps that the quality
+measures, the trim distance and the repairs allow for on a bare cloud.
 """
 
 from __future__ import annotations
