@@ -198,3 +198,14 @@ def test_measurements_are_reused_only_for_the_same_polynomial_data_and_options(m
     assert quality(wide, moved) == q and len(extractions) == 3
     moved += 0.5  # changed in place
     assert quality(wide, moved).recall > 0.0 and len(extractions) == 4
+
+
+def test_concurrent_measurements_match_sequential_ones():
+    from concurrent.futures import ThreadPoolExecutor
+
+    shape = synthetic.circle(80)
+    polys = [synthetic.from_terms(2, 2, {(2, 0): 1.0, (0, 2): 1.0, (0, 0): -(r * r)}) for r in np.linspace(0.8, 1.2, 9)]
+    expected = [quality(p, shape.points).f_score for p in polys]
+    with ThreadPoolExecutor(4) as pool:  # more polynomials than the cache holds, from 4 threads
+        got = list(pool.map(lambda p: quality(p, shape.points + 0.0).f_score, polys * 3))
+    assert got == expected * 3

@@ -39,6 +39,7 @@ are shorter than τ). The extracted zero set itself is accurate to about one gri
 from __future__ import annotations
 
 import math
+import threading
 from dataclasses import asdict, dataclass
 from typing import Any, Sequence
 
@@ -387,18 +388,21 @@ def _measure(model, points, *, details: bool = False, **options):
                    model.normalization.scale, pts.shape, hash(pts.tobytes()),
                    None if faces is None else hash(np.ascontiguousarray(faces).tobytes()),
                    repr(sorted((k, v) for k, v in options.items() if k != "faces")))
-    if key is None or key not in _MEASURED:
+    with _MEASURED_LOCK:
+        found = _MEASURED.get(key) if key is not None else None
+    if found is None:
         found = _measure_now(model, points, **options)
-        if key is None:
-            return (None, *found[1:]) if details else found[:2]
-        while len(_MEASURED) >= 4:
-            _MEASURED.pop(next(iter(_MEASURED)))
-        _MEASURED[key] = found
-    q, flags, samples, d_zero, tau = _MEASURED[key]
+        if key is not None:
+            with _MEASURED_LOCK:
+                while len(_MEASURED) >= 4:
+                    _MEASURED.pop(next(iter(_MEASURED)))
+                _MEASURED[key] = found
+    q, flags, samples, d_zero, tau = found
     return (None, flags, samples, d_zero, tau) if details else (q, flags)
 
 
 _MEASURED: dict = {}
+_MEASURED_LOCK = threading.Lock()  # fits may measure from several threads
 _MEASURE_DEFAULTS = dict(faces=None, ordered_contour=False, tau=None, tau_fraction=DEFAULT_TAU_FRACTION, bounds=None,
                          margin=0.25, resolution=None, spacing=None, max_samples=DEFAULT_MAX_SAMPLES)
 

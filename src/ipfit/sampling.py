@@ -12,6 +12,8 @@ measures, the trim distance and the repairs allow for on a bare cloud.
 
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -32,20 +34,24 @@ def point_spacing(points: ArrayLike, k: int = 1) -> NDArray[np.float64]:
     pts = as_points(points)
     k = check_int(k, "k", minimum=1)
     key = (pts.shape, k, hash(pts.tobytes()))
-    if key not in _SPACING:
+    with _SPACING_LOCK:
+        spacing = _SPACING.get(key)
+    if spacing is None:
         from scipy.spatial import cKDTree
 
         if len(pts) <= k:
             spacing = np.zeros(len(pts))
         else:
             spacing = cKDTree(pts).query(pts, k=[k + 1], workers=-1)[0][:, 0]
-        while len(_SPACING) >= 4:
-            _SPACING.pop(next(iter(_SPACING)))
-        _SPACING[key] = spacing
-    return _SPACING[key].copy()
+        with _SPACING_LOCK:
+            while len(_SPACING) >= 4:
+                _SPACING.pop(next(iter(_SPACING)))
+            _SPACING[key] = spacing
+    return spacing.copy()
 
 
 _SPACING: dict = {}
+_SPACING_LOCK = threading.Lock()
 
 
 def _occupied(keys_of, size: float) -> tuple[int, NDArray[np.int64]]:
