@@ -182,3 +182,18 @@ def test_bound_screens_members_that_lose_on_the_data_alone(dim, rng):
     np.testing.assert_array_equal(plain(pop, bound), data)
     with pytest.raises(ipfit.InvalidInputError, match="bound: expected a \\(40,\\) array"):
         fused(pop, bound[:3])
+
+
+def test_compiled_farthest_points_match_a_plain_numpy_selection(rng):
+    from ipfit._distance_kernels import farthest_points
+
+    candidates = rng.normal(size=(500, 3))
+    reach = 0.5 + rng.random(500)
+    gap, pick, expected = np.full(500, np.inf), int(np.argmin(reach)), []
+    for _ in range(60):
+        expected.append(pick)
+        gap = np.minimum(gap, np.linalg.norm(candidates - candidates[pick], axis=1) / reach)
+        pick = int(np.argmax(gap))
+    chosen = np.empty(60, dtype=np.int64)
+    farthest_points(candidates, reach, int(np.argmin(reach)), chosen)
+    assert chosen.tolist() == expected and len(set(expected)) == 60
