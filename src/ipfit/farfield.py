@@ -26,6 +26,7 @@ from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
 from . import basis
+from ._recent import Recent, array_key
 from ._validation import check_nonnegative, check_positive, error
 
 __all__ = ["far_field_samples", "term_samples", "term_sample_count", "fused_rows", "FarFieldTerm", "DEFAULT_MARGIN",
@@ -168,24 +169,23 @@ def term_samples(u: NDArray[np.float64], normals: NDArray[np.float64], *, count:
     """
     u = np.ascontiguousarray(u, dtype=np.float64)
     normals = np.ascontiguousarray(normals, dtype=np.float64)
-    key = (u.shape, u.tobytes(), normals.tobytes(), count, per_axis, tuple(sorted(kwargs.items())))
-    if key not in _TERM_SAMPLES:
-        dim = u.shape[1]
-        candidates, targets = far_field_samples(u, normals, per_axis=per_axis or TERM_GRID[dim], **kwargs)
-        radius = float(np.linalg.norm(u - u.mean(axis=0), axis=1).mean())
-        keep = _spread(candidates, np.abs(targets) + SPREAD_OFFSET * radius,
-                       term_sample_count(len(u), dim) if count is None else int(count))
-        while len(_TERM_SAMPLES) >= _CACHED_SAMPLE_SETS:
-            _TERM_SAMPLES.pop(next(iter(_TERM_SAMPLES)))
-        _TERM_SAMPLES[key] = (candidates[keep], targets[keep])
-    samples, targets = _TERM_SAMPLES[key]
+    key = (array_key(u), array_key(normals), count, per_axis, tuple(sorted(kwargs.items())))
+    samples, targets = _TERM_SAMPLES.get(key, lambda: _term_samples(u, normals, count, per_axis, kwargs))
     return samples.copy(), targets.copy()
+
+
+def _term_samples(u, normals, count, per_axis, kwargs) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    dim = u.shape[1]
+    candidates, targets = far_field_samples(u, normals, per_axis=per_axis or TERM_GRID[dim], **kwargs)
+    radius = float(np.linalg.norm(u - u.mean(axis=0), axis=1).mean())
+    keep = _spread(candidates, np.abs(targets) + SPREAD_OFFSET * radius,
+                   term_sample_count(len(u), dim) if count is None else int(count))
+    return candidates[keep], targets[keep]
 
 
 # The samples depend on the data alone, and an adaptive fit builds the same term at every degree
 # (twice when the search is subsampled); the farthest-point selection is its costly part.
-_TERM_SAMPLES: dict = {}
-_CACHED_SAMPLE_SETS = 4
+_TERM_SAMPLES = Recent(4)
 
 
 class FarFieldTerm:

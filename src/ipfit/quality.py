@@ -39,13 +39,13 @@ are shorter than τ). The extracted zero set itself is accurate to about one gri
 from __future__ import annotations
 
 import math
-import threading
 from dataclasses import asdict, dataclass
 from typing import Any, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ._recent import Recent, array_key
 from ._validation import as_faces, as_points, check_int, check_positive, error
 from .polynomial import ImplicitPolynomial
 from .zeroset import Samples, ZeroSet, extract_zero_set, sample_segments, sample_triangles
@@ -379,30 +379,20 @@ def _measure(model, points, *, details: bool = False, **options):
     if unknown:
         raise TypeError(f"unexpected keyword argument {sorted(unknown)[0]!r}")
     options = {**_MEASURE_DEFAULTS, **options, "ordered_contour": bool(options.get("ordered_contour"))}
-    key = None
-    if isinstance(model, ImplicitPolynomial):
-        pts = np.ascontiguousarray(points, dtype=np.float64) if isinstance(points, np.ndarray) else None
-        if pts is not None:
-            faces = options.get("faces")
-            key = (model.coefficients.tobytes(), model.dim, model.normalization.center.tobytes(),
-                   model.normalization.scale, pts.shape, hash(pts.tobytes()),
-                   None if faces is None else hash(np.ascontiguousarray(faces).tobytes()),
-                   repr(sorted((k, v) for k, v in options.items() if k != "faces")))
-    with _MEASURED_LOCK:
-        found = _MEASURED.get(key) if key is not None else None
-    if found is None:
+    if not isinstance(model, ImplicitPolynomial) or not isinstance(points, np.ndarray):
         found = _measure_now(model, points, **options)
-        if key is not None:
-            with _MEASURED_LOCK:
-                while len(_MEASURED) >= 4:
-                    _MEASURED.pop(next(iter(_MEASURED)))
-                _MEASURED[key] = found
+    else:
+        faces = options["faces"]
+        key = (array_key(model.coefficients), array_key(model.normalization.center), model.normalization.scale,
+               array_key(np.asarray(points, dtype=np.float64)),
+               None if faces is None else array_key(np.asarray(faces)),
+               repr(sorted((k, v) for k, v in options.items() if k != "faces")))
+        found = _MEASURED.get(key, lambda: _measure_now(model, points, **options))
     q, flags, samples, d_zero, tau = found
     return (None, flags, samples, d_zero, tau) if details else (q, flags)
 
 
-_MEASURED: dict = {}
-_MEASURED_LOCK = threading.Lock()  # fits may measure from several threads
+_MEASURED = Recent(4)
 _MEASURE_DEFAULTS = dict(faces=None, ordered_contour=False, tau=None, tau_fraction=DEFAULT_TAU_FRACTION, bounds=None,
                          margin=0.25, resolution=None, spacing=None, max_samples=DEFAULT_MAX_SAMPLES)
 

@@ -12,11 +12,10 @@ measures, the trim distance and the repairs allow for on a bare cloud.
 
 from __future__ import annotations
 
-import threading
-
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ._recent import Recent, array_key
 from ._validation import as_points, check_int, check_rng
 
 __all__ = ["spread_subsample", "point_spacing"]
@@ -33,25 +32,18 @@ def point_spacing(points: ArrayLike, k: int = 1) -> NDArray[np.float64]:
     """
     pts = as_points(points)
     k = check_int(k, "k", minimum=1)
-    key = (pts.shape, k, hash(pts.tobytes()))
-    with _SPACING_LOCK:
-        spacing = _SPACING.get(key)
-    if spacing is None:
-        from scipy.spatial import cKDTree
-
-        if len(pts) <= k:
-            spacing = np.zeros(len(pts))
-        else:
-            spacing = cKDTree(pts).query(pts, k=[k + 1], workers=-1)[0][:, 0]
-        with _SPACING_LOCK:
-            while len(_SPACING) >= 4:
-                _SPACING.pop(next(iter(_SPACING)))
-            _SPACING[key] = spacing
-    return spacing.copy()
+    return _SPACING.get((array_key(pts), k), lambda: _spacing(pts, k)).copy()
 
 
-_SPACING: dict = {}
-_SPACING_LOCK = threading.Lock()
+def _spacing(pts: NDArray[np.float64], k: int) -> NDArray[np.float64]:
+    from scipy.spatial import cKDTree
+
+    if len(pts) <= k:
+        return np.zeros(len(pts))
+    return cKDTree(pts).query(pts, k=[k + 1], workers=-1)[0][:, 0]
+
+
+_SPACING = Recent(4)
 
 
 def _occupied(keys_of, size: float) -> tuple[int, NDArray[np.int64]]:
