@@ -197,3 +197,31 @@ def test_compiled_farthest_points_match_a_plain_numpy_selection(rng):
     chosen = np.empty(60, dtype=np.int64)
     farthest_points(candidates, reach, int(np.argmin(reach)), chosen)
     assert chosen.tolist() == expected and len(set(expected)) == 60
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_single_member_pass_is_the_sum_of_its_parts(dim, rng, monkeypatch):
+    # The polish's compiled pass stacks the data and every far-field term's samples; its value
+    # and gradient must be the paper's objective plus each term's own (numpy) value_and_grad,
+    # whether the rows fit in one block or run in ragged blocks, and in a float32 objective too.
+    import ipfit.objective as objective_module
+
+    shape = synthetic.ellipse(300) if dim == 2 else synthetic.torus(600, rng=rng)
+    degree = 4
+    fit = ipfit.fit_3l(shape.points, shape.normals, degree)
+    u = fit.normalization.apply(shape.points)
+    terms = [FarFieldTerm.from_data(u, shape.normals, degree, weight=0.5),
+             FarFieldTerm(1.6 * u[::20], np.full(len(u[::20]), 0.6), degree, weight=3.0)]  # kept-clear places
+    a = fit.coefficients + 0.05 * rng.normal(size=fit.coefficients.size)
+    value, grad = Objective(u, shape.normals, degree).value_and_grad(a)
+    for term in terms:
+        tv, tg = term.value_and_grad(a)
+        value, grad = value + tv, grad + tg
+    assert all(t.value_and_grad(a)[0] > 0 for t in terms)
+    one = Objective(u, shape.normals, degree, terms=terms).value_and_grad(a)
+    single32 = Objective(u, shape.normals, degree, terms=terms, dtype=np.float32).value_and_grad(a)
+    monkeypatch.setattr(objective_module, "_SINGLE_ROWS", 97)
+    blocked = Objective(u, shape.normals, degree, terms=terms).value_and_grad(a)
+    for v, g in (one, single32, blocked):
+        assert v == pytest.approx(value, rel=1e-12)
+        np.testing.assert_allclose(g, grad, rtol=1e-9, atol=1e-12 * np.abs(grad).max())

@@ -79,3 +79,87 @@ def reduce_far_field(values, grads, scale, weight, tiny, sum_far):  # pragma: no
             gz = np.float64(grads[i, z + p]) if z >= 0 else 0.0
             short = 1.0 - k * np.float64(values[i, p]) / np.sqrt(max(gx * gx + gy * gy + gz * gz, tiny))
             sum_far[p] += w * min(max(short, 0.0), 2.0)
+
+
+# Reassociation lets LLVM vectorise the dot products of one row (the polish's pass works on
+# one member, so there is no population axis to vectorise over); no other fast-math liberties:
+# infinities and NaNs keep their IEEE meaning.
+_JIT_DOTS = dict(_JIT, fastmath={"reassoc", "contract"})
+
+
+@njit(**_JIT_DOTS)
+def member_pass(rows, a, bt, normals, scale, weight, n_data, inv_n, delta, tiny, cap, floor, grad,
+                low_t_w):  # pragma: no cover - compiled
+    """Value and gradient of one member over stacked rows, in one pass over the design matrix.
+
+    ``rows`` (n, d) is the design matrix M, its first d_{g−1} columns the lower-degree block
+    L; rows ``< n_data`` are data points with unit ``normals``, the others far-field samples
+    with k_i = ``scale`` and w_i = ``weight`` (indexed from the first far row). ``a`` (d,) are
+    the coefficients and ``bt`` (dim, d_{g−1}) those of ∂f/∂x_k, so f = M a and ∇f = L btᵀ.
+    Accumulates into ``grad`` (d,) Mᵀ c_f and into ``low_t_w`` (dim, d_{g−1}) (Lᵀ C_g)ᵀ, the
+    weights of df and d∇f in the derivative of ``inv_n`` · Σ_data (Taubin + δ(1 − cosine)) +
+    Σ_far w_i clip(1 − k_i f/||∇f||, 0, 2); the caller adds the adjoint of the gather (chain
+    rule through ∇f = L D_k a). Each row is read once and used from cache for both directions:
+    four matrix-vector products would stream the matrix from memory four times.
+    Returns (Σ Taubin, Σ cosine, far-field term).
+
+    Data rows: d|f|/||g|| = sign(f)/||g|| df − |f| gᵀ/||g||³ dg and
+    d(g·n/||g||) = (n − cos g/||g||)/||g|| dg; capped points and points where ∇f (nearly)
+    vanishes (||g||² ≤ ``floor``) get no gradient, which is unbounded there. Far rows:
+    d(1 − k f/||g||) = −k/||g|| df + k f gᵀ/||g||³ dg where 0 < 1 − k f/||g|| < 2, else 0.
+    """
+    n, d = rows.shape
+    dim, n_low = bt.shape
+    g = np.empty(dim)
+    coef_g = np.empty(dim)
+    sum_t = 0.0
+    sum_c = 0.0
+    far = 0.0
+    for i in range(n):
+        r = rows[i]
+        f = 0.0
+        for j in range(d):
+            f += r[j] * a[j]
+        sq = 0.0
+        for k in range(dim):
+            s = 0.0
+            for j in range(n_low):
+                s += r[j] * bt[k, j]
+            g[k] = s
+            sq += s * s
+        sq = max(sq, tiny)
+        inv = 1.0 / np.sqrt(sq)
+        coef_f = 0.0
+        if i < n_data:
+            dot = 0.0
+            for k in range(dim):
+                dot += g[k] * normals[i, k]
+            taubin = abs(f) * inv
+            capped = taubin >= cap
+            taubin = min(taubin, cap)
+            cosine = dot * inv
+            sum_t += taubin
+            sum_c += cosine
+            if capped or sq <= floor:
+                continue
+            coef_f = (1.0 if f > 0 else (-1.0 if f < 0 else 0.0)) * inv * inv_n
+            along = taubin * inv * inv
+            for k in range(dim):
+                coef_g[k] = (-along * g[k] - delta * (normals[i, k] - cosine * inv * g[k]) * inv) * inv_n
+        else:
+            j = i - n_data
+            ratio = scale[j] * f * inv
+            short = 1.0 - ratio
+            far += weight[j] * min(max(short, 0.0), 2.0)
+            if not 0.0 < short < 2.0:
+                continue
+            coef_f = -weight[j] * scale[j] * inv
+            for k in range(dim):
+                coef_g[k] = weight[j] * ratio * inv * inv * g[k]
+        for j in range(d):
+            grad[j] += coef_f * r[j]
+        for k in range(dim):
+            c = coef_g[k]
+            for j in range(n_low):
+                low_t_w[k, j] += c * r[j]
+    return sum_t, sum_c, far

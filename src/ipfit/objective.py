@@ -265,7 +265,8 @@ class Objective:
         # Terms outside the compiled pass; a far-field term of weight 0 is dropped altogether,
         # so that the objective is then the paper's, bit for bit.
         self._extra = tuple(t for t in self.terms if not isinstance(t, FarFieldTerm))
-        self._with_grad = self._extra + tuple(t for t in self.terms if isinstance(t, FarFieldTerm) and t.active)
+        self._far64 = self._far if self.dtype == np.float64 else None  # the far rows of the polish's pass
+        self._member_rows = None
         self._whitening = None
 
     # -- construction from raw data ---------------------------------------------------------
@@ -435,47 +436,47 @@ class Objective:
         almost everywhere; at f(x_i) = 0 the sign function's value 0 is used (a subgradient).
         It is orthogonal to ``coefficients`` (the objective is scale invariant).
         """
-        a = self._population(coefficients)[0]
-        # Matrix-vector products only: one thread does them at memory speed, and BLAS worker
-        # threads left spinning here would slow the optimiser's own (SciPy) BLAS calls.
-        with single_threaded_blas():
-            return self._value_and_grad(a)
+        # One compiled pass, no BLAS call (an L-BFGS step runs in a fraction of a millisecond,
+        # so even entering a BLAS thread limit here would be a noticeable share of it).
+        return self._value_and_grad(self._population(coefficients)[0])
 
     def _value_and_grad(self, a: NDArray[np.float64]) -> tuple[float, NDArray[np.float64]]:
-        bt = basis.gradient_coefficients(a[:, None], self.dim, self.degree)  # (d_{g-1}, dim)
-        sum_t = sum_c = 0.0
-        grad = np.zeros(self.n_coefficients)
-        low_t_w = np.zeros((self.n_lower, self.dim))
-        for lo, hi in basis.point_blocks(self.n_points, _SINGLE_ROWS):
-            m = self._design(lo, hi, np.float64)
-            low, nrm = m[:, : self.n_lower], self.normals64[lo:hi]
-            f = m @ a
-            g = low @ bt  # (n, dim)
-            sq = np.maximum(np.einsum("ij,ij->i", g, g), _TINY)
-            inv = 1.0 / np.sqrt(sq)
-            taubin = np.abs(f) * inv
-            capped = taubin >= TAUBIN_CAP
-            taubin = np.minimum(taubin, TAUBIN_CAP)
-            cosine = np.einsum("ij,ij->i", g, nrm) * inv
-            sum_t += taubin.sum()
-            sum_c += cosine.sum()
-            # d|f|/||g|| = sign(f)/||g|| dm − |f| gᵀ/||g||³ dg;  d(g·n/||g||) = (n − cos g/||g||)/||g|| dg.
-            # Capped points and points where ∇f vanishes contribute no gradient (it is unbounded
-            # there); zeroing 1/||g|| at those points removes them from both weights.
-            inv = np.where(~capped & (sq > _GRAD_FLOOR), inv, 0.0)
-            weight_g = (-(taubin * inv * inv)[:, None] * g
-                        - self.delta * (nrm - (cosine * inv)[:, None] * g) * inv[:, None])
-            grad += m.T @ (np.sign(f) * inv)
-            low_t_w += low.T @ weight_g
+        from ._objective_kernels import member_pass
+
+        bt = np.ascontiguousarray(basis.gradient_coefficients(a[:, None], self.dim, self.degree).T)  # (dim, d_{g-1})
         n = self.n_points
-        value = sum_t / n + self.delta * (1.0 - sum_c / n)
-        basis.add_gradient_adjoint(grad, low_t_w, self.degree)  # the chain rule through ∇f = L D_k a
-        grad /= n
-        for term in self._with_grad:
+        sums = np.zeros(3)
+        grad = np.zeros(self.n_coefficients)
+        low_t_w = np.zeros((self.dim, self.n_lower))
+        for rows, normals, n_data in self._member_blocks():
+            sums += member_pass(rows, a, bt, normals, self._far64[1], self._far64[2], n_data, 1.0 / n, self.delta,
+                                _TINY, TAUBIN_CAP, _GRAD_FLOOR, grad, low_t_w)
+        value = sums[0] / n + self.delta * (1.0 - sums[1] / n) + sums[2]
+        basis.add_gradient_adjoint(grad, low_t_w.T, self.degree)  # the chain rule through ∇f = L D_k a
+        for term in self._extra:
             tv, tg = term.value_and_grad(a)
             value += float(tv)
             grad = grad + np.asarray(tg, dtype=np.float64)
         return float(value), grad
+
+    def _member_blocks(self):
+        """(float64 rows, their normals, how many are data rows) for the single-member pass:
+        the data then the far-field samples, stacked into one block when they fit in one (a
+        polish step is then a few products and one compiled call, not dozens of small numpy
+        operations per part)."""
+        if self._far64 is None:
+            self._far64 = (fused_rows(self.terms, self.dim, self.degree, np.float64)
+                           or (np.empty((0, self.n_coefficients)), np.empty(0), np.empty(0)))
+        far = self._far64[0]
+        if self.n_points + len(far) <= _SINGLE_ROWS:
+            if self._member_rows is None:
+                self._member_rows = np.vstack([self._design(0, self.n_points, np.float64), far])
+            yield self._member_rows, self.normals64, self.n_points
+            return
+        for lo, hi in basis.point_blocks(self.n_points, _SINGLE_ROWS):
+            yield self._design(lo, hi, np.float64), self.normals64[lo:hi], hi - lo
+        if len(far):
+            yield far, self.normals64[:0], 0
 
 
 def measures(poly_or_population: ImplicitPolynomial | ArrayLike, points: ArrayLike, normals: ArrayLike,
