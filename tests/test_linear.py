@@ -9,6 +9,7 @@ from scipy.spatial.transform import Rotation
 import ipfit
 from ipfit import basis
 from ipfit.datasets import synthetic
+from ipfit._recent import Recent
 from ipfit.linear import LINEAR_METHODS, fit_linear, ridge_penalty
 
 EXACT_SHAPES = {
@@ -220,8 +221,42 @@ def test_blocked_qr_equals_the_one_shot_qr(monkeypatch, method):
     pts = shape.points + 0.02 * np.random.default_rng(1).normal(size=shape.points.shape)
     one_shot = ipfit.fit_linear(pts, shape.normals, 4, method)
     monkeypatch.setattr(ipfit.linear, "_BLOCK_ROWS", 97)
+    monkeypatch.setattr(ipfit.linear, "_FACTORS", Recent(8))  # factor again, in blocks
     blocked = ipfit.fit_linear(pts, shape.normals, 4, method)
     np.testing.assert_allclose(blocked.coefficients, one_shot.coefficients, rtol=1e-9, atol=1e-12)
+
+
+def test_start_fits_share_their_big_factors_and_solve_the_stacked_systems(monkeypatch, rng):
+    # The search's dozen start fits factor each big block once (3L at each offset, the values M
+    # and the gradient rows), and each fit is still the least-squares solution of its whole
+    # stacked system, here against numpy's lstsq of the explicit rows.
+    from ipfit.options import DEFAULT_START_FITS, parse_start_fit
+
+    shape = synthetic.torus(500, rng=rng)
+    pts = shape.points + 0.01 * rng.normal(size=shape.points.shape)
+    factored = []
+    real = ipfit.linear._r_of_blocks
+    monkeypatch.setattr(ipfit.linear, "_r_of_blocks", lambda blocks: factored.append(1) or real(blocks))
+    monkeypatch.setattr(ipfit.linear, "_FACTORS", Recent(8))
+    fits = {spec: fit_linear(pts, shape.normals, 4, parse_start_fit(spec)[0], **parse_start_fit(spec)[1])
+            for spec in DEFAULT_START_FITS}
+    assert len(factored) == 5  # 3L at c = 0.05, 0.02, 0.1; M; the gradient rows (Taubin factors its own)
+    u = fits["3l"].normalization.apply(pts)
+    m, dm = basis.monomials_and_gradients(u, 4)
+    for spec, a_rows, b_rows in [
+            ("gradient_one(mu=10)", np.vstack([m, np.sqrt(10) * dm.reshape(-1, m.shape[1])]),
+             np.concatenate([np.zeros(len(m)), np.sqrt(10) * shape.normals.T.ravel()])),
+            ("ridge(kappa=1e-3)", None, None)]:
+        if a_rows is None:  # 3L rows at ±c plus the ridge rows √(κ D)
+            c = ipfit.linear.DEFAULT_OFFSET
+            off = np.concatenate([u, u + c * shape.normals, u - c * shape.normals])
+            a_rows = np.vstack([basis.monomials(off, basis.exponents(3, 4)),
+                                np.diag(np.sqrt(1e-3 * ridge_penalty(u, basis.exponents(3, 4))))])
+            b_rows = np.concatenate([np.zeros(len(u)), np.full(len(u), c), np.full(len(u), -c),
+                                     np.zeros(a_rows.shape[1])])
+        expected = np.linalg.lstsq(a_rows, b_rows, rcond=None)[0]
+        got = fits[spec].coefficients
+        assert abs(abs(got @ expected) / np.linalg.norm(expected) - 1) < 1e-9  # the same line (fits are unit, signed)
 
 
 @pytest.mark.slow

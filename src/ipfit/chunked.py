@@ -159,6 +159,10 @@ class _ChunkedProblem(_Problem):
         # R of each chunk's rows has the R of those rows: stacking them loses nothing.
         return self._per_chunk(lambda sub: _r_of_blocks(make(sub, *args)))
 
+    def r_of(self, make: Callable[..., Iterable[NDArray]], *args) -> NDArray:
+        # Not kept: ``u`` is only a subsample of the chunks the rows come from.
+        return _r_of_blocks(self.blocks(make, *args))
+
     def power_sums(self, top: int) -> NDArray[np.float64]:
         return np.sum(self._per_chunk(lambda sub: _Problem.power_sums(sub, top)), axis=0)
 

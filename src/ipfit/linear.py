@@ -13,7 +13,6 @@ never through the normal equations, whose condition number is the square of the 
 from __future__ import annotations
 
 import functools
-import itertools
 import numbers
 import warnings
 from dataclasses import dataclass
@@ -25,6 +24,7 @@ import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 
 from . import basis
+from ._recent import Recent, array_key
 from ._validation import (as_normals, as_points, check_choice, check_degree, check_enough_points, check_nonnegative,
                           check_positive, error)
 from .options import into_keyword, renamed_keywords
@@ -97,10 +97,22 @@ class _Problem:
         """The row blocks ``make(problem, *args)`` of the whole cloud (or blocks with the same R)."""
         return make(self, *args)
 
+    def r_of(self, make: Callable[..., Iterable[NDArray]], *args) -> NDArray:
+        """R of the rows ``make(problem, *args)``, kept for the next fits on the same data: the
+        start fits of a search solve a dozen systems that share their big blocks (3L and its
+        ridge variants one, gradient-one's variants and least squares two), so each big QR is
+        done once and each fit adds only its own small rows."""
+        key = (array_key(self.u), None if self.normals is None else array_key(self.normals), self.degree,
+               make.__name__, args)
+        return _FACTORS.get(key, lambda: _r_of_blocks(self.blocks(make, *args)))
+
     def power_sums(self, top: int) -> NDArray[np.float64]:
         """γ_t = Σ_i ||u_i||^{2t} for t = 0..top (the ridge penalty's weights)."""
         sq = np.einsum("ij,ij->i", self.u, self.u)
         return np.array([np.sum(sq**t) for t in range(top + 1)])
+
+
+_FACTORS = Recent(8)
 
 
 def _prepare(points: ArrayLike, normals: ArrayLike | None, degree, *, method: str,
@@ -117,12 +129,13 @@ def _prepare(points: ArrayLike, normals: ArrayLike | None, degree, *, method: st
 
 
 def _triangular_lstsq(r: NDArray, z: NDArray, method: str) -> tuple[NDArray, dict]:
-    """Minimum-norm solution of R a = z for a small square R, with diagnostics."""
-    sv = np.linalg.svd(r, compute_uv=False)
+    """Minimum-norm solution of R a = z for a small R, with diagnostics (one SVD: singular values
+    at most _RCOND times the largest count as zero, as in LAPACK's gelsd)."""
+    u, sv, vt = np.linalg.svd(r, full_matrices=False)
     top = float(sv[0]) if sv.size else 0.0
     rank = int(np.sum(sv > _RCOND * top)) if top > 0 else 0
     cond = float(top / sv[-1]) if sv[-1] > 0 else float("inf")
-    a, *_ = scipy.linalg.lstsq(r, z, cond=_RCOND, lapack_driver="gelsd")
+    a = vt[:rank].T @ ((u[:, :rank].T @ z) / sv[:rank])
     if rank < r.shape[1]:
         warnings.warn(f"{method}: the linear system is rank deficient (rank {rank} of {r.shape[1]}); "
                       "the solution is the minimum-norm one. Use more points, a lower degree or fit_ridge.",
@@ -164,11 +177,13 @@ def _augmented(a_mat: NDArray, b: NDArray) -> NDArray:
     return aug
 
 
-def _qr_solve(blocks: Iterable[NDArray], d: int, method: str,
+def _qr_solve(r_aug: NDArray, d: int, method: str, more: Iterable[NDArray] = (),
               extra_rows: NDArray | None = None) -> tuple[NDArray, dict]:
-    """Least squares min ||A a − b||² (+ ||E a||²) from the R of [A | b], given as row blocks of
-    [A | b]; Q is never formed."""
-    r_aug = _r_of_blocks(blocks)
+    """Least squares min ||A a − b||² (+ ||E a||²) from R of [A | b], R of [R; ``more``] when
+    more rows of [A | b] are given (the R of stacked rows is that of their R's); Q is never formed."""
+    more = list(more)
+    if more:
+        r_aug = _r_factor(np.concatenate([r_aug, *more]))
     r, z = r_aug[:d, :d], r_aug[:d, d]
     residual = float(abs(r_aug[d, d])) if r_aug.shape[0] > d else 0.0
     if extra_rows is not None:
@@ -186,8 +201,7 @@ def _lstsq_blocks(problem: _Problem) -> Iterator[NDArray]:
 
 def _solve_lstsq(problem: _Problem) -> tuple[NDArray, dict]:
     # Minimise ||M a|| with ||a|| = 1: the right singular vector of the smallest singular value.
-    r = _r_of_blocks(problem.blocks(_lstsq_blocks))
-    _, sv, vt = np.linalg.svd(r)
+    _, sv, vt = np.linalg.svd(problem.r_of(_lstsq_blocks))
     info = {"condition_number": float(sv[0] / sv[-1]) if sv[-1] > 0 else float("inf"),
             "smallest_singular_value": float(sv[-1]),
             "singular_gap": float(sv[-1] / sv[-2]) if sv.size > 1 and sv[-2] > 0 else 0.0}
@@ -252,7 +266,7 @@ def _far_field_block(problem: _Problem, n_rows: int, far_row_weight: float, c: f
 def _solve_3l(problem: _Problem, c: float = DEFAULT_OFFSET, far_row_weight: float = 0.0) -> tuple[NDArray, dict]:
     far, n_far = _far_field_block(problem, 3 * problem.n_points, far_row_weight, c)
     d = basis.n_coefficients(problem.dim, problem.degree)
-    coef, info = _qr_solve(itertools.chain(problem.blocks(_three_level_blocks, c), far), d, "fit_3l")
+    coef, info = _qr_solve(problem.r_of(_three_level_blocks, c), d, "fit_3l", far)
     info.update(far_row_weight=far_row_weight, far_samples=n_far)
     return coef, info
 
@@ -278,18 +292,17 @@ def _solve_ridge(problem: _Problem, c: float = DEFAULT_OFFSET, kappa: float = DE
                  far_row_weight: float = 0.0) -> tuple[NDArray, dict]:
     far, n_far = _far_field_block(problem, 3 * problem.n_points, far_row_weight, c)
     penalty = _ridge_diagonal(problem.power_sums(problem.degree), problem.exponents)
-    coef, info = _qr_solve(itertools.chain(problem.blocks(_three_level_blocks, c), far), len(penalty), "fit_ridge",
+    coef, info = _qr_solve(problem.r_of(_three_level_blocks, c), len(penalty), "fit_ridge", far,
                            extra_rows=np.diag(np.sqrt(kappa * penalty)))
     info.update(kappa=kappa, far_row_weight=far_row_weight, far_samples=n_far)
     return coef, info
 
 
-def _gradient_one_blocks(problem: _Problem, mu: float) -> Iterator[NDArray]:
-    root = np.sqrt(mu)
-    for sl in _point_chunks(problem, 1 + problem.dim):
+def _gradient_blocks(problem: _Problem) -> Iterator[NDArray]:
+    """Rows [∂M/∂x_k | n_k]: the gradient-one rows before their weight √μ."""
+    for sl in _point_chunks(problem, problem.dim):
         m, dm = basis.monomials_and_gradients(problem.u[sl], problem.degree)
-        yield _augmented(np.concatenate([m, root * dm.reshape(-1, m.shape[1])]),
-                         np.concatenate([np.zeros(len(m)), root * problem.normals[sl].T.ravel()]))
+        yield _augmented(dm.reshape(-1, m.shape[1]), problem.normals[sl].T.ravel())
 
 
 def _solve_gradient_one(problem: _Problem, mu: float = DEFAULT_MU, far_row_weight: float = 0.0,
@@ -297,7 +310,10 @@ def _solve_gradient_one(problem: _Problem, mu: float = DEFAULT_MU, far_row_weigh
     n_rows = problem.n_points * (1 + problem.dim)
     far, n_far = _far_field_block(problem, n_rows, far_row_weight, c)
     d = basis.n_coefficients(problem.dim, problem.degree)
-    coef, info = _qr_solve(itertools.chain(problem.blocks(_gradient_one_blocks, mu), far), d, "fit_gradient_one")
+    # R of [M | 0; √μ ∂M | √μ n] is R of [R_M | 0; √μ R_∂]: every μ reuses the two big factors.
+    values = problem.r_of(_lstsq_blocks)
+    values = np.hstack([values, np.zeros((len(values), 1))])
+    coef, info = _qr_solve(values, d, "fit_gradient_one", [np.sqrt(mu) * problem.r_of(_gradient_blocks), *far])
     info.update(mu=mu, far_row_weight=far_row_weight, far_samples=n_far)
     return coef, info
 
