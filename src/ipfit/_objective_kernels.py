@@ -88,19 +88,20 @@ _JIT_DOTS = dict(_JIT, fastmath={"reassoc", "contract"})
 
 
 @njit(**_JIT_DOTS)
-def member_pass(rows, a, bt, normals, scale, weight, n_data, inv_n, delta, tiny, cap, floor, grad,
-                low_t_w):  # pragma: no cover - compiled
+def member_pass(rows, a, source, factor, normals, scale, weight, n_data, inv_n, delta, tiny, cap, floor,
+                grad):  # pragma: no cover - compiled
     """Value and gradient of one member over stacked rows, in one pass over the design matrix.
 
     ``rows`` (n, d) is the design matrix M, its first d_{g−1} columns the lower-degree block
     L; rows ``< n_data`` are data points with unit ``normals``, the others far-field samples
     with k_i = ``scale`` and w_i = ``weight`` (indexed from the first far row). ``a`` (d,) are
-    the coefficients and ``bt`` (dim, d_{g−1}) those of ∂f/∂x_k, so f = M a and ∇f = L btᵀ.
-    Accumulates into ``grad`` (d,) Mᵀ c_f and into ``low_t_w`` (dim, d_{g−1}) (Lᵀ C_g)ᵀ, the
-    weights of df and d∇f in the derivative of ``inv_n`` · Σ_data (Taubin + δ(1 − cosine)) +
-    Σ_far w_i clip(1 − k_i f/||∇f||, 0, 2); the caller adds the adjoint of the gather (chain
-    rule through ∇f = L D_k a). Each row is read once and used from cache for both directions:
-    four matrix-vector products would stream the matrix from memory four times.
+    the coefficients; ``source``, ``factor`` are :func:`ipfit.basis.derivative_gather`'s tables,
+    giving b_k = D_k a, the coefficients of ∂f/∂x_k, so f = M a and ∂f/∂x_k = L b_k.
+    Adds to ``grad`` (d,) the gradient of ``inv_n`` · Σ_data (Taubin + δ(1 − cosine)) +
+    Σ_far w_i clip(1 − k_i f/||∇f||, 0, 2) over these rows: Mᵀ c_f plus Σ_k D_kᵀ Lᵀ c_k, c_f
+    and c_k being the weights of df and d(∂f/∂x_k) below. Each row is read once and used from
+    cache for both directions: four matrix-vector products would stream the matrix from memory
+    four times.
     Returns (Σ Taubin, Σ cosine, far-field term).
 
     Data rows: d|f|/||g|| = sign(f)/||g|| df − |f| gᵀ/||g||³ dg and
@@ -109,7 +110,12 @@ def member_pass(rows, a, bt, normals, scale, weight, n_data, inv_n, delta, tiny,
     d(1 − k f/||g||) = −k/||g|| df + k f gᵀ/||g||³ dg where 0 < 1 − k f/||g|| < 2, else 0.
     """
     n, d = rows.shape
-    dim, n_low = bt.shape
+    dim, n_low = source.shape
+    bt = np.empty((dim, n_low))
+    for k in range(dim):
+        for j in range(n_low):
+            bt[k, j] = factor[k, j] * a[source[k, j]]
+    low_t_w = np.zeros((dim, n_low))
     g = np.empty(dim)
     coef_g = np.empty(dim)
     sum_t = 0.0
@@ -162,4 +168,7 @@ def member_pass(rows, a, bt, normals, scale, weight, n_data, inv_n, delta, tiny,
             c = coef_g[k]
             for j in range(n_low):
                 low_t_w[k, j] += c * r[j]
+    for k in range(dim):  # the adjoint of the gather: the chain rule through ∂f/∂x_k = L D_k a
+        for j in range(n_low):
+            grad[source[k, j]] += factor[k, j] * low_t_w[k, j]
     return sum_t, sum_c, far

@@ -443,16 +443,14 @@ class Objective:
     def _value_and_grad(self, a: NDArray[np.float64]) -> tuple[float, NDArray[np.float64]]:
         from ._objective_kernels import member_pass
 
-        bt = np.ascontiguousarray(basis.gradient_coefficients(a[:, None], self.dim, self.degree).T)  # (dim, d_{g-1})
+        source, factor = basis.derivative_gather(self.dim, self.degree)
         n = self.n_points
         sums = np.zeros(3)
         grad = np.zeros(self.n_coefficients)
-        low_t_w = np.zeros((self.dim, self.n_lower))
         for rows, normals, n_data in self._member_blocks():
-            sums += member_pass(rows, a, bt, normals, self._far64[1], self._far64[2], n_data, 1.0 / n, self.delta,
-                                _TINY, TAUBIN_CAP, _GRAD_FLOOR, grad, low_t_w)
+            sums += member_pass(rows, a, source, factor, normals, self._far64[1], self._far64[2], n_data, 1.0 / n,
+                                self.delta, _TINY, TAUBIN_CAP, _GRAD_FLOOR, grad)
         value = sums[0] / n + self.delta * (1.0 - sums[1] / n) + sums[2]
-        basis.add_gradient_adjoint(grad, low_t_w.T, self.degree)  # the chain rule through ∇f = L D_k a
         for term in self._extra:
             tv, tg = term.value_and_grad(a)
             value += float(tv)
