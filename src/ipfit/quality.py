@@ -166,17 +166,19 @@ class _Target:
         self.band = 2 * tau + self.reach
         self.tree = cKDTree(samples.points)
         self._cells = None
-        if np.isfinite(self.band):
-            # Cells of side `band` holding samples, grown by one cell: a query outside them is
-            # farther than `band` from every sample, and needs no k-d tree search to say so.
-            dim = samples.points.shape[1]
-            keys = np.floor(samples.points / self.band).astype(np.int64)
-            self._lo = keys.min(axis=0) - 1
-            self._extent = keys.max(axis=0) - self._lo + 2
-            codes = np.unique(self._encode(keys))  # 1D codes: far cheaper to sort than rows
-            offsets = np.stack(np.meshgrid(*[[-1, 0, 1]] * dim, indexing="ij"), axis=-1).reshape(-1, dim)
-            self._cells = np.unique((codes[:, None] + self._encode(offsets - self._lo)[None, :]
-                                     - self._encode(np.zeros((1, dim), dtype=np.int64) - self._lo)).ravel())
+
+    def _build_cells(self) -> None:
+        # Cells of side `band` holding samples, grown by one cell: a query outside them is
+        # farther than `band` from every sample, and needs no k-d tree search to say so.
+        points = self.samples.points
+        dim = points.shape[1]
+        keys = np.floor(points / self.band).astype(np.int64)
+        self._lo = keys.min(axis=0) - 1
+        self._extent = keys.max(axis=0) - self._lo + 2
+        codes = np.unique(self._encode(keys))  # 1D codes: far cheaper to sort than rows
+        offsets = np.stack(np.meshgrid(*[[-1, 0, 1]] * dim, indexing="ij"), axis=-1).reshape(-1, dim)
+        self._cells = np.unique((codes[:, None] + self._encode(offsets - self._lo)[None, :]
+                                 - self._encode(np.zeros((1, dim), dtype=np.int64) - self._lo)).ravel())
 
     def _encode(self, keys: NDArray) -> NDArray:
         code = np.zeros(len(keys), dtype=np.int64)
@@ -185,8 +187,12 @@ class _Target:
         return code
 
     def _maybe_near(self, query: NDArray) -> NDArray[np.bool_]:
-        if self._cells is None:
+        # The cells only pay for themselves over many queries: a few data points against a
+        # dense zero set go straight to the (bounded) k-d tree search.
+        if not np.isfinite(self.band) or len(query) < len(self.samples.points) // 4:
             return np.ones(len(query), dtype=bool)
+        if self._cells is None:
+            self._build_cells()
         keys = np.floor(query / self.band).astype(np.int64)
         inside = np.all((keys >= self._lo) & (keys < self._lo + self._extent), axis=1)
         out = np.zeros(len(query), dtype=bool)
