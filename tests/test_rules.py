@@ -208,3 +208,55 @@ def test_a_degree_out_of_the_race_is_not_repaired():
     assert is_done(low, "capture", best_f=0.99)        # 2·0.9/1.9 = 0.947 < 0.98
     assert not is_done(low, "capture", best_f=0.90)    # it could still win: repair it
     assert is_done(low, "geometric", best_f=0.90)      # the geometric rule repairs unclean degrees only
+
+
+def test_a_repair_stops_at_the_first_weight_that_does_not_help():
+    # (x² + y² − 1)(x² + y² − 0.04) on a unit circle's points: the small circle is spurious. The
+    # repair tries the clean-up weights in turn, but goes on to a stronger weight only after one
+    # that improved the fit.
+    import dataclasses
+
+    from ipfit.adaptive import DegreeResult
+    from ipfit.objective import measures
+    from ipfit.options import RECOMMENDED
+    from ipfit.quality import quality
+    from ipfit.repair import repair
+
+    circle = synthetic.circle(200)
+
+    def degree_result(poly):
+        m = measures(poly, circle.points, circle.normals)
+        return DegreeResult(x=poly.coefficients, fun=m.distance, nit=0, nfev=1, success=True, message="", degree=4,
+                            polynomial=poly, measures=m, seconds=0.0,
+                            quality=quality(poly, circle.points, ordered_contour=True))
+
+    # (r² − 1)(r² − s) = r⁴ − (1 + s) r² + s, r⁴ = x⁴ + 2x²y² + y⁴
+    def two_circles(s):
+        return synthetic.from_terms(2, 4, {(4, 0): 1, (2, 2): 2, (0, 4): 1, (2, 0): -(1 + s), (0, 2): -(1 + s),
+                                           (0, 0): s})
+
+    spurious, still, cleaner = (degree_result(two_circles(s)) for s in (0.04, 0.05, -1.0))
+    assert spurious.quality.n_spurious == 1 and still.quality.n_spurious == 1
+    assert cleaner.quality.n_spurious == 0 and cleaner.quality.f_score > 0.99  # only the unit circle
+    options = RECOMMENDED.replace(cleanup_weights=(1.0, 10.0, 100.0))
+
+    def scripted(*outcomes):
+        calls = []
+
+        def refit(opts, start, keep_clear):
+            calls.append(opts.far_term_weight)
+            assert len(keep_clear) and np.all(np.linalg.norm(keep_clear, axis=1) < 0.5)  # the small circle only
+            return outcomes[len(calls) - 1]
+        return refit, calls
+
+    for first in (spurious, still):  # the first weight changes nothing, or nothing that counts
+        refit, calls = scripted(first, cleaner, cleaner)
+        kept = repair(spurious, refit, options, circle.points, None, True, "capture")
+        assert calls == [1.0] and kept.quality.n_spurious == 1 and len(kept.cleanup) == 1
+    refit, calls = scripted(cleaner, spurious, spurious)  # the first weight cleans it: done
+    kept = repair(spurious, refit, options, circle.points, None, True, "capture")
+    assert calls == [1.0] and kept.quality.n_spurious == 0
+    better = dataclasses.replace(still, quality=dataclasses.replace(still.quality, f_score=0.99 * cleaner.quality.f_score))
+    refit, calls = scripted(better, cleaner, spurious)  # an improvement, not yet clean: the next weight
+    kept = repair(spurious, refit, options, circle.points, None, True, "capture")
+    assert calls == [1.0, 10.0] and kept.quality.n_spurious == 0

@@ -159,7 +159,8 @@ class SearchOptions:
         When a degree's zero set has spurious components, the geometric rule of
         :func:`ipfit.fit_adaptive` polishes that degree's fit again with a far-field term that
         also holds samples of those components (``refine(keep_clear=...)``), at these weights
-        in turn, before rejecting the degree; every attempt is recorded.
+        in turn (stopping at the first that does not improve the fit), before rejecting the
+        degree; every attempt is recorded.
 
     Examples
     --------

@@ -84,8 +84,9 @@ def repair(entry: DegreeResult, refit: Callable[..., DegreeResult], options: Sea
     Its zero set's stray parts (farther than τ from the data: spurious components, sheets,
     bulges and lobes attached to the shape) are sampled and held clear by the far-field term in
     an L-BFGS polish from its fit, at each of the options' clean-up weights in turn, the places
-    accumulating over rounds. The best result (clean first, then the F-score) replaces the fit;
-    every round is recorded in ``cleanup``.
+    accumulating over rounds, until a round is done or does not improve on the best so far. The
+    best result (clean first, then the F-score) replaces the fit; every round is recorded in
+    ``cleanup``.
 
     ``refit(options, start, keep_clear)`` fits the same degree again with the 'polish' method
     from the coefficients ``start``, and measures it.
@@ -110,8 +111,9 @@ def repair(entry: DegreeResult, refit: Callable[..., DegreeResult], options: Sea
                          "f_score": trial.quality.f_score, "precision": trial.quality.precision,
                          "n_spurious": trial.quality.n_spurious, "closed": bool(trial.quality.closed),
                          "seconds": trial.seconds})
-        if _better(trial, best, rule, entry.quality.recall):
-            best = current = trial
+        if not _better(trial, best, rule, entry.quality.recall):
+            break  # a weight that did not help: a stronger one pulls the zero set about even more
+        best = current = trial
         if is_done(best, rule, best_f):
             break
     if best is not entry:
