@@ -42,7 +42,8 @@ def fit_one(spec: str, side: str, seed: int) -> dict:
     result = fit_adaptive(data.points, data.normals, faces=data.faces, rng=seed)
     seconds = time.perf_counter() - start
     q = result.at_degree(result.selected_degree).quality
-    return {"shape": Path(spec).stem, "side": side, "seed": seed, "degree": result.selected_degree, "f_score": q.f_score,
+    shape = spec if spec in BUNDLED else f"{Path(spec).parent.name}/{Path(spec).stem}"  # turk-dev has an airplane too
+    return {"shape": shape, "side": side, "seed": seed, "degree": result.selected_degree, "f_score": q.f_score,
             "clean": q.n_spurious == 0 and bool(q.closed), "n_spurious": q.n_spurious,
             "rounds": sum(len(d.cleanup) for d in result.degrees), "degrees_tried": [d.degree for d in result.degrees],
             "seconds": seconds}
