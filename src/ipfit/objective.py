@@ -459,9 +459,8 @@ class Objective:
 
     def _member_blocks(self):
         """(float64 rows, their normals, how many are data rows) for the single-member pass:
-        the data then the far-field samples, stacked into one block when they fit in one (a
-        polish step is then a few products and one compiled call, not dozens of small numpy
-        operations per part)."""
+        the data then the far-field samples, stacked into one block (kept) when they fit in
+        one, so that a polish step is one compiled call; bigger clouds in blocks of rows."""
         if self._far64 is None:
             self._far64 = (fused_rows(self.terms, self.dim, self.degree, np.float64)
                            or (np.empty((0, self.n_coefficients)), np.empty(0), np.empty(0)))
