@@ -96,7 +96,8 @@ def main() -> None:
             found = {"DE": min(float(res.history[-1]), seed), "DE + polish": res.distance}
             if args.raw:
                 found["DE, raw coefficients"] = refine(pts, nrm, degree, "de", rng=args.rng,
-                                                       options=opts.replace(search_space="coefficients")).distance
+                                                       options=opts.replace(search_space="coefficients",
+                                                                           polish_iterations=None)).distance
             if args.pso:
                 found["PSO + polish"] = refine(pts, nrm, degree, "pso+polish", options=opts, rng=args.rng).distance
             row = [name, str(len(pts)), str(degree), str(res.polynomial.n_coefficients), res.best_start, f"{seed:.5f}"]
