@@ -265,7 +265,9 @@ class Objective:
         # Terms outside the compiled pass; a far-field term of weight 0 is dropped altogether,
         # so that the objective is then the paper's, bit for bit.
         self._extra = tuple(t for t in self.terms if not isinstance(t, FarFieldTerm))
-        self._far64 = self._far if self.dtype == np.float64 else None  # the far rows of the polish's pass
+        # The far rows of the polish's float64 pass (none: empty, so that the pass needs no branch).
+        far64 = self._far if self.dtype == np.float64 else fused_rows(self.terms, self.dim, self.degree, np.float64)
+        self._far64 = far64 or (np.empty((0, self.n_coefficients)), np.empty(0), np.empty(0))
         self._member_rows = None
         self._whitening = None
 
@@ -461,9 +463,6 @@ class Objective:
         """(float64 rows, their normals, how many are data rows) for the single-member pass:
         the data then the far-field samples, stacked into one block (kept) when they fit in
         one, so that a polish step is one compiled call; bigger clouds in blocks of rows."""
-        if self._far64 is None:
-            self._far64 = (fused_rows(self.terms, self.dim, self.degree, np.float64)
-                           or (np.empty((0, self.n_coefficients)), np.empty(0), np.empty(0)))
         far = self._far64[0]
         if self.n_points + len(far) <= _SINGLE_ROWS:
             if self._member_rows is None:
