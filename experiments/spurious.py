@@ -26,6 +26,7 @@ import numpy as np
 
 import ipfit
 from ipfit import PAPER, PAPER_METHOD, PAPER_RULE, RECOMMENDED
+from ipfit._recent import forget_all
 from ipfit.adaptive import fit_adaptive
 from ipfit.datasets import bundled, synthetic
 from ipfit.quality import quality
@@ -88,19 +89,31 @@ def warm_up(paper) -> None:
                      max_degree=4)
 
 
-def run(iterations: int, quick: bool) -> list[dict]:
+def _timed(fit):
+    forget_all()  # cold: no factor, sample or measurement kept from an earlier fit of this shape
+    t0 = time.perf_counter()
+    result = fit()
+    return result, time.perf_counter() - t0
+
+
+def run(iterations: int, quick: bool, repeats: int = 1) -> list[dict]:
+    """One row per shape. With ``repeats`` > 1 the two pipelines run that many times in turn
+    (recommended, paper, recommended, ...) and the seconds are the medians: on a shared machine
+    one run of a few seconds can be off by a third."""
     rows = []
     paper = PAPER.replace(iterations=iterations)
     warm_up(paper)
     for name, pts, nrm, faces, contour in shapes(quick):
-        t0 = time.perf_counter()
-        default = fit_adaptive(pts, nrm, faces=faces, ordered_contour=contour, rng=0,
-                               options=RECOMMENDED.replace(iterations=iterations))
-        t_default = time.perf_counter() - t0
+        times_default, times_paper = [], []
+        for _ in range(repeats):
+            default, seconds = _timed(lambda: fit_adaptive(pts, nrm, faces=faces, ordered_contour=contour, rng=0,
+                                                            options=RECOMMENDED.replace(iterations=iterations)))
+            times_default.append(seconds)
+            by_paper, seconds = _timed(lambda: fit_adaptive(pts, nrm, method=PAPER_METHOD, rule=PAPER_RULE, rng=0,
+                                                             options=paper))
+            times_paper.append(seconds)
+        t_default, t_paper = float(np.median(times_default)), float(np.median(times_paper))
         g = default.selected_degree
-        t0 = time.perf_counter()
-        by_paper = fit_adaptive(pts, nrm, method=PAPER_METHOD, rule=PAPER_RULE, rng=0, options=paper)
-        t_paper = time.perf_counter() - t0
         plain = ipfit.fit_3l(pts, nrm, g)
         de = refine(pts, nrm, g, method=PAPER_METHOD, rng=0, options=paper)
         rows.append({
@@ -109,6 +122,7 @@ def run(iterations: int, quick: bool) -> list[dict]:
             "3l": _q(plain, pts, faces, contour), "de": _q(de.polynomial, pts, faces, contour),
             "default": _q(default.polynomial, pts, faces, contour),
             "seconds_default": t_default, "seconds_paper": t_paper,
+            "seconds_default_runs": times_default, "seconds_paper_runs": times_paper,
         })
         print(json.dumps(rows[-1]), flush=True)
     return rows
@@ -116,6 +130,13 @@ def run(iterations: int, quick: bool) -> list[dict]:
 
 def _cell(q: dict) -> str:
     return f"{q['f_score']:.3f} / {q['n_spurious']} / {'yes' if q['closed'] else 'no'}"
+
+
+def _repeats_note(rows: list[dict]) -> str:
+    repeats = len(rows[0].get("seconds_default_runs", [None])) if rows else 1
+    if repeats <= 1:
+        return ""
+    return f" (medians of {repeats} runs of each pipeline in turn, each without the caches of the one before)"
 
 
 def markdown(rows: list[dict], iterations: int) -> str:
@@ -156,7 +177,7 @@ def markdown(rows: list[dict], iterations: int) -> str:
         f"least plain 3L's on {at_least} of {len(rows)}. Total time of the default pipeline / the paper's "
         f"pipeline: {extra:.2f}× (largest per shape: {worst['shape']}, "
         f"{worst['seconds_default'] / max(worst['seconds_paper'], 1e-9):.2f}×), measured in one run on a shared "
-        "2-core machine.",
+        f"2-core machine{_repeats_note(rows)}.",
     ]
     return "\n".join(lines) + "\n"
 
@@ -166,6 +187,7 @@ def main(argv=None) -> int:
     parser.add_argument("--out", default="docs/spurious.md")
     parser.add_argument("--iterations", type=int, default=500)
     parser.add_argument("--quick", action="store_true", help="a few shapes, for a smoke test")
+    parser.add_argument("--repeats", type=int, default=1, help="time each pipeline this many times (medians)")
     parser.add_argument("--from-json", help="rewrite the Markdown from stored rows instead of fitting")
     args = parser.parse_args(argv)
     if args.from_json:
@@ -173,7 +195,7 @@ def main(argv=None) -> int:
         Path(args.out).write_text(markdown(rows, args.iterations), encoding="utf-8")
         print(f"wrote {args.out}")
         return 0
-    rows = run(args.iterations, args.quick)
+    rows = run(args.iterations, args.quick, args.repeats)
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(markdown(rows, args.iterations), encoding="utf-8")

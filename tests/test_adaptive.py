@@ -190,10 +190,14 @@ def test_a_spurious_component_is_polished_away_before_the_degree_is_rejected():
 
 
 def test_auto_search_settings_depend_on_the_dimension():
-    for dim, points, stall, polish in ((2, 1000, 30, 300), (3, 3000, 60, 1000)):
+    for dim, points, stall, polish, dtype in ((2, 1000, 30, 300, "float64"), (3, 3000, 30, 1000, "float32")):
         resolved = ipfit.RECOMMENDED.for_method("de+polish", dim=dim)
-        assert (resolved["search_points"], resolved["stall_generations"], resolved["polish_iterations"]) == \
-            (points, stall, polish)
+        assert (resolved["search_points"], resolved["stall_generations"], resolved["polish_iterations"],
+                resolved["dtype"]) == (points, stall, polish, dtype)
+    assert ipfit.PAPER.for_method("de", dim=3)["dtype"] == "float64"
+    assert ipfit.SearchOptions(dtype=np.float32).dtype == "float32"
+    with pytest.raises(ipfit.InvalidInputError, match="dtype: expected one of"):
+        ipfit.SearchOptions(dtype="float16")
     # an explicit value is the user's, in every dimension; the paper's preset has no "auto"
     assert ipfit.SearchOptions(search_points=500).for_method("de", dim=3)["search_points"] == 500
     assert ipfit.PAPER.for_method("de", dim=2)["search_points"] is None

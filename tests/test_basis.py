@@ -63,3 +63,23 @@ def test_derivative_map_of_a_known_polynomial():
     dy = basis.derivative_map(2, 3, 1) @ a
     assert dx[low[(1, 1)]] == 6 and dx[low[(0, 0)]] == -1 and np.count_nonzero(dx) == 2
     assert dy[low[(2, 0)]] == 3 and dy[low[(0, 1)]] == 4 and np.count_nonzero(dy) == 2
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_population_gradient_coefficients_are_the_derivative_maps(dim, dtype, rng):
+    # Member p's ∂f/∂x_k coefficients sit in column k·P + p; the gradients at the points then
+    # agree with the central differences checked above.
+    degree, members = 4, 7
+    at = rng.normal(size=(basis.n_coefficients(dim, degree), members)).astype(dtype)
+    out = basis.gradient_coefficients(at, dim, degree)
+    assert out.dtype == dtype and out.shape == (basis.n_coefficients(dim, degree - 1), dim * members)
+    for k, dmap in enumerate(basis.derivative_maps(dim, degree)):
+        np.testing.assert_allclose(out[:, k * members:(k + 1) * members], dmap @ at.astype(np.float64),
+                                   rtol=1e-6 if dtype == np.float32 else 1e-15)
+    pts = rng.uniform(-1, 1, size=(5, dim))
+    m, dm = basis.monomials_and_gradients(pts, degree)
+    low = m[:, : basis.n_coefficients(dim, degree - 1)]
+    for k in range(dim):
+        np.testing.assert_allclose(low @ out[:, k * members:(k + 1) * members].astype(np.float64),
+                                   dm[k] @ at.astype(np.float64), rtol=1e-5, atol=1e-5)

@@ -7,7 +7,8 @@ import pytest
 
 from ipfit import InvalidInputError
 from ipfit.optimize import DifferentialEvolution, OptimizeResult, ParticleSwarm, polish, unit_rows
-from ipfit.optimize._de import crossover, distinct_indices, mutate, select
+from ipfit.optimize._de import distinct_indices, select
+from ipfit.optimize._kernels import rand1_bin
 from ipfit.optimize._pso import velocity_update
 
 
@@ -19,13 +20,16 @@ def sphere(x):
 def test_de_operators_by_hand():
     pop = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]])
     r1, r2, r3 = np.array([1, 2, 3, 0]), np.array([2, 3, 0, 1]), np.array([3, 0, 1, 2])
-    mutant = mutate(pop, r1, r2, r3, 0.5)
+    # mutants v_i = x_r1 + ½(x_r2 − x_r3):
     # v0 = x1 + ½(x2 − x3) = (1,0) + ½(−1,0) = (0.5, 0);   v1 = x2 + ½(x3 − x0) = (0.5, 1.5)
     # v2 = x3 + ½(x0 − x1) = (0.5, 1);                     v3 = x0 + ½(x1 − x2) = (0.5, −0.5)
-    np.testing.assert_array_equal(mutant, [[0.5, 0.0], [0.5, 1.5], [0.5, 1.0], [0.5, -0.5]])
-    mask = np.array([[True, False], [False, True], [True, True], [False, False]])
-    trial = crossover(pop, mutant, mask)
-    np.testing.assert_array_equal(trial, [[0.5, 0.0], [1.0, 1.5], [0.5, 1.0], [1.0, 1.0]])
+    # crossover at CR = 0.5: draws below it take the mutant's component, and so does the forced
+    # position (row 3 draws none, so it gets only its forced second component).
+    draws = np.array([[0.1, 0.9], [0.9, 0.1], [0.1, 0.1], [0.9, 0.9]])
+    forced = np.array([0, 1, 0, 1])
+    trial = np.empty_like(pop)
+    rand1_bin(pop, r1, r2, r3, 0.5, draws, 0.5, forced, trial)
+    np.testing.assert_array_equal(trial, [[0.5, 0.0], [1.0, 1.5], [0.5, 1.0], [1.0, -0.5]])
     values = np.array([1.0, 2.0, 3.0, 4.0])
     replaced = select(pop, values, trial, np.array([0.5, 2.0, 5.0, 4.5]))
     np.testing.assert_array_equal(replaced, [True, True, False, False])  # ties are accepted

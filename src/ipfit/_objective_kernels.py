@@ -81,6 +81,20 @@ def reduce_far_field(values, grads, scale, weight, tiny, sum_far):  # pragma: no
             sum_far[p] += w * min(max(short, 0.0), 2.0)
 
 
+@njit(**_JIT)
+def gather_gradients(at, source, factor, out):  # pragma: no cover - compiled
+    """``out[i, k·P + p] = factor[k, i] · at[source[k, i], p]``: the coefficients of ∂f/∂x_k of
+    every member (:func:`ipfit.basis.gradient_coefficients`), in one pass without temporaries."""
+    dim, n_low = source.shape
+    n_members = at.shape[1]
+    for k in range(dim):
+        for i in range(n_low):
+            f = factor[k, i]
+            row = at[source[k, i]]
+            for p in range(n_members):
+                out[i, k * n_members + p] = row[p] * f
+
+
 # Reassociation lets LLVM vectorise the dot products of one row (the polish's pass works on
 # one member, so there is no population axis to vectorise over); no other fast-math liberties:
 # infinities and NaNs keep their IEEE meaning.

@@ -8,11 +8,21 @@ computed once per fit without callers passing handles around.
 from __future__ import annotations
 
 import threading
+import weakref
 from typing import Any, Callable, Hashable
 
 import numpy as np
 
-__all__ = ["Recent", "array_key"]
+__all__ = ["Recent", "array_key", "forget_all"]
+
+_INSTANCES: "weakref.WeakSet[Recent]" = weakref.WeakSet()
+
+
+def forget_all() -> None:
+    """Empty every :class:`Recent` cache, so that the next fit computes everything again (a
+    benchmark timing fits one after the other on the same data wants each one cold)."""
+    for cache in list(_INSTANCES):
+        cache.clear()
 
 
 def array_key(a: np.ndarray) -> tuple:
@@ -30,12 +40,20 @@ class Recent:
     [10, 20, 10, 30, 10]
     >>> computed  # 1 was stored again after 3 pushed it out
     [1, 2, 3, 1]
+    >>> forget_all(); cache.get(1, lambda: 11)  # every cache emptied: computed again
+    11
     """
 
     def __init__(self, size: int) -> None:
         self.size = size
         self._items: dict = {}
         self._lock = threading.Lock()  # fits may run from several threads
+        _INSTANCES.add(self)
+
+    def clear(self) -> None:
+        """Forget every stored result."""
+        with self._lock:
+            self._items.clear()
 
     def get(self, key: Hashable, compute: Callable[[], Any]) -> Any:
         """The stored result for ``key``, or ``compute()`` stored under it (computed unlocked)."""

@@ -163,12 +163,11 @@ def gradient_coefficients(at: NDArray, dim: int, degree: int) -> NDArray:
     partial derivatives of all members in one product with the degree-(g−1) design matrix L.
     Keeps the dtype of ``at``.
     """
+    from ._objective_kernels import gather_gradients  # compiled: called once or twice per generation
+
     source, factor = derivative_gather(dim, degree)
-    n_members = at.shape[1]
-    out = np.empty((source.shape[1], dim * n_members), dtype=at.dtype)
-    for k in range(dim):
-        np.multiply(at[source[k]], factor[k][:, None].astype(at.dtype, copy=False),
-                    out=out[:, k * n_members:(k + 1) * n_members])
+    out = np.empty((source.shape[1], dim * at.shape[1]), dtype=at.dtype)
+    gather_gradients(at, source, factor.astype(at.dtype, copy=False), out)
     return out
 
 

@@ -129,12 +129,11 @@ def _prepare(points: ArrayLike, normals: ArrayLike | None, degree, *, method: st
 
 
 def _triangular_lstsq(r: NDArray, z: NDArray, method: str) -> tuple[NDArray, dict]:
-    """Minimum-norm solution of R a = z for a small square R, with diagnostics."""
-    sv = np.linalg.svd(r, compute_uv=False)
-    top = float(sv[0]) if sv.size else 0.0
-    rank = int(np.sum(sv > _RCOND * top)) if top > 0 else 0
-    cond = float(top / sv[-1]) if sv[-1] > 0 else float("inf")
-    a, *_ = scipy.linalg.lstsq(r, z, cond=_RCOND, lapack_driver="gelsd")
+    """Minimum-norm solution of R a = z for a small square R, with diagnostics (gelsd's own
+    singular values: a second SVD for them cost as much as the solve)."""
+    a, _, rank, sv = scipy.linalg.lstsq(r, z, cond=_RCOND, lapack_driver="gelsd")
+    rank = int(rank)
+    cond = float(sv[0] / sv[-1]) if sv.size and sv[-1] > 0 else float("inf")
     if rank < r.shape[1]:
         warnings.warn(f"{method}: the linear system is rank deficient (rank {rank} of {r.shape[1]}); "
                       "the solution is the minimum-norm one. Use more points, a lower degree or fit_ridge.",

@@ -56,12 +56,18 @@ METHOD_DEFAULTS: Mapping[str, float | int] = {"mutation": 0.7, "recombination": 
 #: ``benchmarks/bench_search_budget.py``). A contour's 1,000 spread points sample it about as
 #: densely as 3,000 do a surface and halve the search's time on the larger contours; contours
 #: also keep their F-scores with a 30-generation stall and 300 polish iterations (checked over
-#: 143 contours, docs/degree-rule.md). Surfaces keep 60 and 1,000: the shorter budget, as good
-#: on docs/search-budget.md's 12 fixed-degree fits, lost up to 0.23 in F on the thin models of
-#: docs/quality-3d.md when the whole pipeline ran with it (docs/search-budget.md).
+#: 143 contours, docs/degree-rule.md). Surfaces keep 1,000 polish iterations: 300 lost up to
+#: 0.23 in F on the thin models of docs/quality-3d.md (docs/search-budget.md). Their stall is 30
+#: generations too: with the polish kept, the whole pipeline kept its F-scores over 15 models
+#: and two seeds (docs/budget-3d.md) in 0.7x the time.
+#: Surfaces search in float32: a DE selection only compares values, which float32 ranks alike
+#: except at near-ties, and the products run faster (the polish and every reported value stay
+#: float64). Contours keep float64: at degree 14 the monomials' cancellation would eat most of
+#: float32's digits, and the 2D search is a smaller share of a fit.
 AUTO: Mapping[str, Mapping[int, Any]] = {"search_points": {2: 1000, 3: 3000},
-                                         "stall_generations": {2: 30, 3: 60},
-                                         "polish_iterations": {2: 300, 3: 1000}}
+                                         "stall_generations": {2: 30, 3: 30},
+                                         "polish_iterations": {2: 300, 3: 1000},
+                                         "dtype": {2: "float64", 3: "float32"}}
 _USED_BY = {"mutation": ("de",), "recombination": ("de",), "chi": ("pso",), "c1": ("pso",), "c2": ("pso",),
             "polish_iterations": ("polish",)}
 _START_PARAMS = {"3l": ("c", "far_row_weight"), "3l-far": ("c", "far_row_weight"),
@@ -134,9 +140,10 @@ class SearchOptions:
         Weight of the far-field term added to the objective (:class:`ipfit.FarFieldTerm`),
         which keeps the zero set from growing sheets away from the data; 0 is the paper's
         objective exactly.
-    dtype : {"float64", "float32"}
-        Precision of the population evaluations (float32 is about twice as fast; start fits,
-        the polish and the reported measures always use float64).
+    dtype : {"auto", "float64", "float32"}, default "auto"
+        Precision of the population evaluations (float32's products are up to twice as fast;
+        start fits, the polish and the reported measures always use float64). "auto": float64
+        in 2D, float32 in 3D (:data:`AUTO`).
     n_solutions : int, default 5
         How many best distinct solutions a refinement returns.
     search_points : int, None or "auto", default "auto"
@@ -147,7 +154,7 @@ class SearchOptions:
     stall_generations : int, None or "auto", default "auto"
         End DE/PSO when the best objective value has not improved by more than
         ``stall_tolerance`` (relative) over this many generations. None: always run
-        ``iterations`` generations (the paper). "auto": 30 in 2D, 60 in 3D (:data:`AUTO`).
+        ``iterations`` generations (the paper). "auto": 30 (:data:`AUTO`).
     stall_tolerance : float, default 1e-4
     warm_start : bool, default False
         :func:`ipfit.fit_adaptive` starts each degree also from the previous degree's solution
@@ -187,7 +194,7 @@ class SearchOptions:
     start_fraction: float = 0.1
     search_space: str = "whitened"
     far_term_weight: float = DEFAULT_TERM_WEIGHT
-    dtype: str = "float64"
+    dtype: str = "auto"
     n_solutions: int = 5
     search_points: int | None | str = "auto"
     stall_generations: int | None | str = "auto"
@@ -227,11 +234,12 @@ class SearchOptions:
         set_("search_space", check_choice(self.search_space, "search_space", ("whitened", "coefficients")))
         set_("far_term_weight", check_nonnegative(self.far_term_weight, "far_term_weight"))
         dtype = self.dtype
-        try:
-            dtype = np.dtype(dtype).name
-        except TypeError:
-            dtype = repr(dtype)
-        set_("dtype", check_choice(dtype, "dtype", ("float64", "float32")))
+        if not (isinstance(dtype, str) and dtype == "auto"):
+            try:
+                dtype = np.dtype(dtype).name
+            except TypeError:
+                dtype = repr(dtype)
+        set_("dtype", check_choice(dtype, "dtype", ("auto", "float64", "float32")))
         set_("n_solutions", check_int(self.n_solutions, "n_solutions", minimum=1))
         if self.search_points is not None:
             set_("search_points", _int_or_auto(self.search_points, "search_points", 10))
@@ -294,7 +302,7 @@ RECOMMENDED = SearchOptions()
 #: The paper's exact search: DE (F = 0.7, CR = 0.9, 500 iterations, population 4·d, N/10 started)
 #: in the raw coefficients, started from the classic and 3L fits, on the paper's distance.
 PAPER = SearchOptions(start_fits=("lstsq", "3l"), search_space="coefficients", far_term_weight=0.0, search_points=None,
-                      stall_generations=None, cleanup_weights=())
+                      stall_generations=None, cleanup_weights=(), dtype="float64")
 
 
 def renamed_keywords(**renames: Callable[[dict, Any], None]) -> Callable:

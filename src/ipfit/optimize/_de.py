@@ -11,7 +11,7 @@ from .._validation import check_positive, check_probability, error
 from ..options import into_keyword, renamed_keywords
 from ._common import OptimizeResult, PopulationSolver
 
-__all__ = ["DifferentialEvolution", "distinct_indices", "mutate", "crossover", "select"]
+__all__ = ["DifferentialEvolution", "distinct_indices", "trial_population", "select"]
 
 
 def distinct_indices(rng: np.random.Generator, size: int, count: int = 3) -> NDArray[np.int64]:
@@ -35,14 +35,27 @@ def distinct_indices(rng: np.random.Generator, size: int, count: int = 3) -> NDA
     return out
 
 
-def mutate(population: NDArray, r1: NDArray, r2: NDArray, r3: NDArray, mutation: float) -> NDArray:
-    """rand/1 mutant vectors v_i = x_r1 + F (x_r2 − x_r3), F = ``mutation``."""
-    return population[r1] + mutation * (population[r2] - population[r3])
+def trial_population(population: NDArray, rng: np.random.Generator, mutation: float,
+                     recombination: float) -> NDArray[np.float64]:
+    """DE/rand/1/bin trial vectors: each member's components replaced, with probability CR =
+    ``recombination`` and at one random position always, by those of the mutant
+    x_r1 + F (x_r2 − x_r3), F = ``mutation`` (r1, r2, r3 distinct and other than the member).
 
+    >>> pop = np.eye(4)
+    >>> trial = trial_population(pop, np.random.default_rng(0), 0.5, 1.0)  # CR = 1: the mutants
+    >>> sorted(np.round(trial.sum(axis=1), 12).tolist())  # x_r1 + 0.5 (x_r2 - x_r3) sums to 1
+    [1.0, 1.0, 1.0, 1.0]
+    """
+    from ._kernels import rand1_bin
 
-def crossover(population: NDArray, mutant: NDArray, mask: NDArray[np.bool_]) -> NDArray:
-    """Binomial crossover: the mutant's component where ``mask``, the parent's elsewhere."""
-    return np.where(mask, mutant, population)
+    size, dim = population.shape
+    r1, r2, r3 = distinct_indices(rng, size)
+    draws = rng.random((size, dim))
+    forced = rng.integers(dim, size=size)
+    out = np.empty((size, dim))
+    rand1_bin(np.ascontiguousarray(population, dtype=np.float64), r1, r2, r3, float(mutation), draws,
+              float(recombination), forced, out)
+    return out
 
 
 def select(population: NDArray, values: NDArray, trial: NDArray, trial_values: NDArray) -> NDArray[np.bool_]:
@@ -128,13 +141,7 @@ class DifferentialEvolution(PopulationSolver):
 
     def trial_vectors(self) -> NDArray[np.float64]:
         """Draw the next generation's trial vectors (mutation + crossover + projection)."""
-        pop = self.population
-        size, dim = pop.shape
-        r1, r2, r3 = distinct_indices(self.rng, size)
-        mutant = mutate(pop, r1, r2, r3, self.mutation)
-        mask = self.rng.random((size, dim)) < self.recombination
-        mask[np.arange(size), self.rng.integers(dim, size=size)] = True
-        trial = crossover(pop, mutant, mask)
+        trial = trial_population(self.population, self.rng, self.mutation, self.recombination)
         return self.project(trial) if self.project is not None else trial
 
     def _step(self) -> None:
