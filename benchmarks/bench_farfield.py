@@ -6,7 +6,8 @@ coordinates, with a population of P = 4d members around the 3L fit:
 * ``N`` data points, ``M`` far-field samples (:func:`ipfit.farfield.term_samples`) and, for
   comparison, ``M before``: the grid the term used before (64 nodes per side in 2D, 14 in 3D);
 * ``data ms``: one evaluation of the paper's objective alone; ``with term ms``: the same
-  population with :class:`~ipfit.farfield.FarFieldTerm` (weight 0.1) in the same pass;
+  population with :class:`~ipfit.farfield.FarFieldTerm` (weight 0.1) in the same pass; both in
+  the precision the recommended search uses (``ipfit.options.AUTO``: float32 in 3D);
 * ``term share``: (with term − data) / with term, the term's share of one full evaluation
   of the population;
 * ``DE share`` (clouds up to 10,000 points): the term's share of a whole search run the way
@@ -110,7 +111,8 @@ def main() -> None:
     from ipfit.optimize import unit_rows
     from ipfit.polynomial import Normalization
 
-    print(f"# Far-field term benchmark: P = 4d, weight {DEFAULT_TERM_WEIGHT}, float64, "
+    print(f"# Far-field term benchmark: P = 4d, weight {DEFAULT_TERM_WEIGHT}, the recommended search's precision "
+          f"({AUTO['dtype'][2]} in 2D, {AUTO['dtype'][3]} in 3D), "
           f"{platform.processor() or platform.machine()}, {os.cpu_count()} CPUs, worker threads {default_threads()}")
     print()
     print("| dataset | dim | N | degree | d | P | M | M before | data ms | with term ms | term share | "
@@ -130,8 +132,8 @@ def main() -> None:
             size = 4 * d
             pop = unit_rows(fit.coefficients + 0.05 * rng.normal(size=(size, d)))
             term = FarFieldTerm.from_data(u, normals, degree, DEFAULT_TERM_WEIGHT)
-            plain = Objective(u, normals, degree)
-            fused = Objective(u, normals, degree, terms=[term])
+            plain = Objective(u, normals, degree, dtype=AUTO["dtype"][dim])
+            fused = Objective(u, normals, degree, terms=[term], dtype=AUTO["dtype"][dim])
             plain(pop), fused(pop)  # warm up (compilation, pools)
             t_plain, t_fused = interleaved([lambda: plain(pop), lambda: fused(pop)], args.budget)
             row = [name, str(dim), str(len(u)), str(degree), str(d), str(size), str(len(term.samples)), str(old),
