@@ -90,11 +90,13 @@ def markdown(rows: list[dict]) -> str:
                      f"{diff.min():+.3f} ({worst['shape']}, degree {worst['degree']}, seed {worst['seed']}), "
                      f"time {ratio:.2f}×.")
     lines += ["", "`ipfit.options.AUTO` uses the short budget in 2D, where the whole pipeline with it was measured "
-              "over 143 contours (docs/degree-rule.md), and the long one in 3D: these fixed-degree fits favour the "
-              "short budget there too, but the whole pipeline with it (AUTO's 3D values set to 30 and 300, then "
+              "over 143 contours (docs/degree-rule.md). In 3D it keeps the long polish (1,000 iterations) with the "
+              "short stall (30 generations): these fixed-degree fits favour the short budget there too, but the "
+              "whole pipeline with both short (AUTO's 3D values set to 30 and 300, then "
               "`python experiments/quality_3d.py`, run on 2026-12-01) lost quality on the thin models of "
               "docs/quality-3d.md: scissors 0.784 → 0.553, ant 0.622 → 0.576, walkman 0.896 → 0.867, the "
-              "airplane 0.965 → 0.950, at about a third of the time.", "",
+              "airplane 0.965 → 0.950, at about a third of the time; with the short stall alone it kept its "
+              "F-scores over the 15 models and two seeds of docs/budget-3d.md in 0.7× the time.", "",
               "| shape | degree | seed | F long | F short | seconds long | seconds short |", "|---|---|---|---|---|---|---|"]
     for (_, shape, degree, seed), got in pairs.items():
         if len(got) == 2:

@@ -242,6 +242,21 @@ def test_threaded_and_serial_evaluation_agree(rng, monkeypatch):
         Objective(u, normals, 4, threads=0)
 
 
+def test_default_threads_follow_omp_num_threads(monkeypatch):
+    import os
+
+    monkeypatch.delenv("OMP_NUM_THREADS", raising=False)
+    usable = len(os.sched_getaffinity(0))
+    assert objective_module.default_threads() == usable
+    monkeypatch.setenv("OMP_NUM_THREADS", "1")  # what a batch's Dask workers set
+    assert objective_module.default_threads() == 1
+    assert Objective(np.eye(3), np.eye(3), 1).threads == 1
+    monkeypatch.setenv("OMP_NUM_THREADS", str(usable + 5))  # never more than the usable CPUs
+    assert objective_module.default_threads() == usable
+    monkeypatch.setenv("OMP_NUM_THREADS", "many")
+    assert objective_module.default_threads() == usable
+
+
 def test_from_data_normalises_like_the_linear_fits(rng):
     shape = synthetic.ellipse(50, 3.0, 1.0, center=(10.0, 5.0))
     obj = Objective.from_data(shape.points * 7, shape.normals, 2)

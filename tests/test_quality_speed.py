@@ -208,3 +208,32 @@ def test_kernel_matches_trimesh_closest_points(rng):
                               tri[:, 1, :2].copy(), tri[:, 0, :2].copy(), np.full(400, 0.3), False)
     ref = brute_segments(points[:, :2], tri[:, 0, :2], tri[:, 1, :2])[np.arange(400), np.arange(400)]
     np.testing.assert_allclose(segs, np.minimum(ref, 0.3), rtol=1e-9, atol=1e-12)
+
+
+# -- speed-ups that must not change a measurement ---------------------------------------------------
+
+def test_threads_and_caches_do_not_change_a_measurement(monkeypatch):
+    # A zero set of some 60,000 samples (above the threaded-query threshold) against a mesh: the
+    # same Quality threaded or not, and with its cached data side forgotten; the cache tells a
+    # mesh from the bare points it is built on.
+    import importlib
+
+    import trimesh
+
+    from ipfit._recent import forget_all
+
+    qmod = importlib.import_module("ipfit.quality")
+    mesh = trimesh.creation.icosphere(subdivisions=3, radius=1.0)
+    pts, faces = np.asarray(mesh.vertices), np.asarray(mesh.faces)
+    wobbly = synthetic.from_terms(3, 4, {(2, 0, 0): 1 / 1.1 ** 2, (0, 2, 0): 1.0, (0, 0, 2): 1 / 0.9 ** 2,
+                                         (2, 2, 0): 0.3, (0, 0, 0): -1.0})
+    details = qmod._measure(wobbly, pts, faces=faces, details=True)
+    assert len(details[2].points) > qmod._THREADED_QUERIES
+    threaded = quality(wobbly, pts, faces=faces).to_dict()
+    forget_all()
+    monkeypatch.setattr(qmod, "_THREADED_QUERIES", 10**12)
+    assert quality(wobbly, pts, faces=faces).to_dict() == threaded
+    bare = quality(wobbly, pts)
+    assert bare.reference == "points" and threaded["reference"] == "faces"
+    forget_all()
+    assert quality(wobbly, pts).to_dict() == bare.to_dict()

@@ -104,11 +104,17 @@ def single_threaded_blas():
 
 
 def default_threads() -> int:
-    """Worker threads for population evaluation: the CPUs this process may use."""
+    """Worker threads for population evaluation (and big k-d tree queries): the CPUs this process
+    may use, at most ``OMP_NUM_THREADS`` when that is set (a batch's Dask workers set it to 1:
+    one thread per worker process)."""
     try:
-        return max(1, len(os.sched_getaffinity(0)))
+        usable = max(1, len(os.sched_getaffinity(0)))
     except AttributeError:  # pragma: no cover - not Linux
-        return max(1, os.cpu_count() or 1)
+        usable = max(1, os.cpu_count() or 1)
+    try:
+        return max(1, min(usable, int(os.environ.get("OMP_NUM_THREADS", ""))))
+    except ValueError:  # unset or not a number
+        return usable
 
 
 _POOLS: dict[tuple[int, int], ThreadPoolExecutor] = {}

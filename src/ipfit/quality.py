@@ -131,12 +131,12 @@ def looks_like_contour(points: ArrayLike) -> bool:
     return bool(np.quantile(gaps, 0.95) <= 4 * scale)
 
 
-# scipy's k-d tree starts its worker threads on every call: a loss on the small calls (2D
-# contours, the data's few hundred points), a gain from tens of thousands of queries (a 3D zero
-# set's samples: 1.6 s -> 1.25 s over the apple's four degrees, interleaved runs).
+# scipy's k-d tree starts its worker threads on every call: a loss on small calls (2D contours,
+# the data's few hundred points), a gain on the tens of thousands of samples of a 3D zero set
+# (benchmarks/bench_quality.py times the measurement).
 _THREADED_QUERIES = 20_000
-# Leaves of 64 samples: queries far from a surface have many near-equidistant samples, and
-# larger leaves visit them with less tree overhead (the same answers; far probes 2.5x faster).
+# Leaves of 64 samples: a query far from a surface has many near-equidistant samples, which
+# larger leaves visit with less tree overhead; the answers are the same.
 _LEAF_SIZE = 64
 
 
