@@ -75,9 +75,10 @@ def main() -> None:
     from ipfit.refine import refine
 
     # The paper's objective (no far-field term) with the paper's DE/PSO parameters: every point,
-    # every iteration (no subsampled search, no stall stop), started from every linear fit.
+    # every iteration (no subsampled search, no stall stop), in float64, started from every
+    # linear fit.
     opts = RECOMMENDED.replace(far_term_weight=0.0, iterations=args.iterations, search_points=None,
-                               stall_generations=None, polish_iterations=1000)
+                               stall_generations=None, polish_iterations=1000, dtype="float64")
 
     rows, notes = [], []
     columns = (["DE, raw coefficients"] if args.raw else []) + ["DE", "DE + polish"] + (["PSO + polish"] if args.pso else [])
