@@ -88,7 +88,7 @@ def scaling(sizes: list[float], kinds: list[str]) -> list[dict]:
 
 
 def markdown(rows: list[dict], bunny: dict, scale: list[dict], iterations: int) -> str:
-    repeats = len(rows[0].get("seconds_default_runs", [None])) if rows else 1
+    repeats = spurious.timing_repeats(rows)
     total_rec = sum(r["seconds_default"] for r in rows)
     total_paper = sum(r["seconds_paper"] for r in rows)
     lines = [

@@ -132,11 +132,16 @@ def _cell(q: dict) -> str:
     return f"{q['f_score']:.3f} / {q['n_spurious']} / {'yes' if q['closed'] else 'no'}"
 
 
+def timing_repeats(rows: list[dict]) -> int:
+    """How many times each pipeline was timed per shape (1 for rows stored before --repeats)."""
+    return len(rows[0].get("seconds_default_runs", [None])) if rows else 1
+
+
 def _repeats_note(rows: list[dict]) -> str:
-    repeats = len(rows[0].get("seconds_default_runs", [None])) if rows else 1
-    if repeats <= 1:
+    count = timing_repeats(rows)
+    if count <= 1:
         return ""
-    return f" (medians of {repeats} runs of each pipeline in turn, each without the caches of the one before)"
+    return f" (medians of {count} runs of each pipeline in turn, each without the caches of the one before)"
 
 
 def markdown(rows: list[dict], iterations: int) -> str:
