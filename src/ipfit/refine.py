@@ -56,6 +56,10 @@ FULL_POLISH_POINTS = 50_000
 FULL_POLISH_MIN = 5
 # Two unit coefficient vectors closer than this count as the same solution.
 _DISTINCT = 1e-3
+# Two distances of one polynomial computed along different paths (a sign or scale change, another
+# BLAS kernel, another summation order) agree to about N·eps; a candidate must beat the best start
+# fit by more than this share to count as better.
+_SAME_DISTANCE = 1e-9
 # Whitening diagonal entries below this share of the largest belong to directions that do not
 # change f on the data at all (e.g. every monomial with y on points with y = 0): they are
 # floored so that the map stays invertible; the search then moves freely along them.
@@ -403,7 +407,7 @@ def _refine(pts, unit_normals, degree, method, settings, delta, given_starts, ke
     solutions = _solutions(template, pool, pool_fun, kept, obj64, pts, unit_normals, starts)
     best = solutions[0]
     fun = float(obj64(best.coefficients)[0])
-    if len(starts) and best.measures["distance"] >= starts.distances[0]:
+    if len(starts) and best.measures["distance"] >= starts.distances[0] * (1 - _SAME_DISTANCE):
         messages.append("no candidate beat the best start fit: returning it")
     success = success and bool(np.isfinite(fun))
     if not np.isfinite(fun):

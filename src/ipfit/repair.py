@@ -67,6 +67,14 @@ def _better(trial: DegreeResult, best: DegreeResult, rule: str, recall: float) -
     return (clean(trial, rule), trial.quality.f_score) > (clean(best, rule), best.quality.f_score)
 
 
+def _closer(trial: DegreeResult, best: DegreeResult, recall: float) -> bool:
+    """A repair that failed only by leaving specks of spurious zero set (none open, the recall
+    kept, a higher F-score): the next weight, with the specks held clear too, may finish it."""
+    q = trial.quality
+    return (q.n_spurious > 0 and q.closed and q.recall >= recall - RECALL_KEPT
+            and q.f_score > best.quality.f_score)
+
+
 def _stray_distance(tau: float, pts, faces, ordered_contour) -> float:
     if faces is not None or ordered_contour:
         return tau
@@ -112,7 +120,10 @@ def repair(entry: DegreeResult, refit: Callable[..., DegreeResult], options: Sea
                          "n_spurious": trial.quality.n_spurious, "closed": bool(trial.quality.closed),
                          "seconds": trial.seconds})
         if not _better(trial, best, rule, entry.quality.recall):
-            break  # a weight that did not help: a stronger one pulls the zero set about even more
+            if not _closer(trial, best, entry.quality.recall):
+                break  # a weight that did not help: a stronger one pulls the zero set about even more
+            current = trial  # on the data but with new specks: the next round holds them clear too
+            continue
         best = current = trial
         if is_done(best, rule, best_f):
             break
