@@ -33,6 +33,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ._numeric import unit_rows
+from ._optional import require
 from ._validation import check_choice, check_degree, check_enough_points, check_int, error
 from .exceptions import ReadError
 from .linear import _PARAMS, LINEAR_METHODS, _fit_problem, _Problem, _r_of_blocks
@@ -98,7 +99,7 @@ def open_cloud(path: str | Path, chunk_rows: int = 1 << 20):
     each, in name order, unless bigger than ``chunk_rows``). Nothing is read until the
     arrays are computed, and each task keeps only its own rows.
     """
-    import dask.array as da
+    da = require("dask.array", "ipfit.chunked.open_cloud")
 
     folder = Path(path)
     if (folder / "points.npy").is_file() and (folder / "normals.npy").is_file():
@@ -213,6 +214,7 @@ def fit_chunked(points, normals, degree: int, method: str = "3l", *, chunk_rows:
     >>> bool(np.allclose(chunked.coefficients, fit_3l(shape.points, shape.normals, 4).coefficients, rtol=1e-10))
     True
     """
+    require("dask.array", "ipfit.fit_chunked")
     method = check_choice(method, "method", CHUNKED_METHODS)
     degree = check_degree(degree)
     chunk_rows = check_int(chunk_rows, "chunk_rows", minimum=1)

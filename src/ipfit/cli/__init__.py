@@ -156,6 +156,14 @@ def _main(argv: Sequence[str] | None) -> int:
         except OSError as exc:
             print(f"ipfit {label}: error: {_os_error_line(exc)}", file=sys.stderr)
             return 2
+        except ModuleNotFoundError as exc:
+            from .._optional import missing
+
+            error = missing(exc, f"ipfit {label}")
+            if error is None:
+                raise
+            print(f"ipfit {label}: error: {error}", file=sys.stderr)
+            return 2
         except MemoryError:
             print(f"ipfit {label}: error: out of memory. Use smaller inputs or options (--resolution, --dpi, ...).",
                   file=sys.stderr)

@@ -11,14 +11,13 @@ from typing import Iterator, NamedTuple
 
 from numpy.typing import NDArray
 
+from .._optional import install_line
 from ..exceptions import InvalidInputError, ReadError
 
 #: Fewer points than this make no point cloud.
 MIN_POINTS = 3
 #: Comment written by ipfit into 3D-only formats (z = 0) so that 2D points come back as 2D.
 IPFIT_2D = "ipfit 2D points (z = 0)"
-#: The extra that installs the scanner formats' libraries.
-SCANNERS_EXTRA = "pip install 'ipfit[scanners]'"
 
 
 class Raw(NamedTuple):
@@ -47,7 +46,7 @@ def optional_module(name: str, path: Path, what: str):
         return importlib.import_module(name)
     except ImportError:
         raise ReadError(f"{path}: reading {what} files needs the '{name.split('.')[0]}' package. "
-                        f"Install it with: {SCANNERS_EXTRA}") from None
+                        f"Install it with: {install_line(name)}") from None
 
 
 @contextlib.contextmanager
