@@ -1,15 +1,20 @@
 """Try ipfit on bad input and faults, and write docs/robustness.md.
 
-    PYTHONPATH=src python experiments/robustness.py [--fuzz 200] [--signals 12] [--json-values 12] [--out docs/robustness.md]
+    PYTHONPATH=src python experiments/robustness.py [--fuzz 200] [--signals 12] [--json-values 12]
+        [--kills 8] [--batch-signals 4] [--only STEP] [--out docs/robustness.md]
 
 Categories: bad files x commands, bad options, output paths, corrupted result JSON (CLI and
 API), API calls with bad arguments, fuzzing of every reader (truncations, bit flips, random
 bytes, huge numbers, out-of-range indices), signals (real SIGINT/SIGTERM to real processes)
 and write faults (ENOSPC/EROFS/EACCES injected into the atomic writer, plus real unwritable
-paths). Per category it counts: cases, clean outcomes (success, or one line + exit 2 on the
-command line / an IpfitError in the API), foreign exceptions or tracebacks, leftover temporary
-or partial files, and input files modified. Command-line cases run in-process through
-``ipfit.cli.main`` (the same boundary as the console script) except the signal cases.
+paths); then the second, hostile-user campaign of ``robustness_hostile.py`` (batch outputs,
+corrupted results on resume, batch Ctrl-C, concurrent and SIGKILLed runs on one prefix,
+special files, resource bombs, result-JSON edge cases, API inputs, missing optional packages).
+Per category it counts: cases, clean outcomes (success, or one line + exit 2 on the command
+line / an IpfitError in the API), foreign exceptions or tracebacks, hangs, data lost, mixed
+output sets, leftover temporary or partial files, and input or user files modified. The first
+campaign's command-line cases run in-process through ``ipfit.cli.main`` (the same boundary as
+the console script) except the signal cases; the second's run in subprocesses.
 """
 
 from __future__ import annotations
@@ -22,6 +27,7 @@ import hashlib
 import io
 import json
 import os
+import platform
 import random
 import shutil
 import signal
@@ -39,6 +45,8 @@ import ipfit
 from ipfit import _atomic
 from ipfit.cli import main
 from ipfit.exceptions import IpfitError
+
+import robustness_hostile as hostile
 
 ROOT = Path(__file__).resolve().parents[1]
 SRC = str(Path(ipfit.__file__).resolve().parents[1])
@@ -73,11 +81,14 @@ class Tally:
         self.foreign: dict[str, dict[str, list[str]]] = collections.defaultdict(dict)
 
     def add(self, category: str, *, clean: bool, foreign: str | None = None, reproducer: str = "",
-            leftovers: int = 0, modified: int = 0) -> None:
+            leftovers: int = 0, modified: int = 0, hang: bool = False, lost: int = 0, mixed: int = 0) -> None:
         row = self.rows[category]
         row["cases"] += 1
-        row["clean"] += bool(clean and not foreign)
-        row["foreign"] += bool(foreign)
+        row["clean"] += bool(clean and not foreign and not hang and not lost and not mixed)
+        row["foreign"] += bool(foreign) and not hang
+        row["hangs"] += bool(hang)
+        row["lost"] += lost
+        row["mixed"] += mixed
         row["leftovers"] += leftovers
         row["modified"] += modified
         if foreign:
@@ -490,16 +501,24 @@ def write_faults(tally: Tally, work: Path, data: Path, result: Path) -> None:
 
 # -- report -----------------------------------------------------------------------------------
 
+def processor() -> str:
+    """The processor's model name (BLAS kernels, and so the last bits of results, depend on it)."""
+    with contextlib.suppress(OSError):
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    return platform.machine()
+
+
 def render(tally: Tally, seconds: float, args) -> str:
-    header = ("| category | cases | clean | foreign exceptions / tracebacks | leftover or partial files | "
-              "inputs modified |\n|---|---:|---:|---:|---:|---:|")
+    columns = ("cases", "clean", "foreign", "hangs", "lost", "mixed", "leftovers", "modified")
+    header = ("| category | cases | clean | foreign exceptions / tracebacks | hangs | data lost | mixed output sets | "
+              "leftover or partial files | inputs or user files modified |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|")
     rows, total = [], collections.Counter()
     for category, row in tally.rows.items():
-        rows.append(f"| {category} | {row['cases']:,} | {row['clean']:,} | {row['foreign']:,} | {row['leftovers']:,} | "
-                    f"{row['modified']:,} |")
+        rows.append(f"| {category} | " + " | ".join(f"{row[c]:,}" for c in columns) + " |")
         total.update(row)
-    rows.append(f"| **total** | **{total['cases']:,}** | **{total['clean']:,}** | **{total['foreign']:,}** | "
-                f"**{total['leftovers']:,}** | **{total['modified']:,}** |")
+    rows.append("| **total** | " + " | ".join(f"**{total[c]:,}**" for c in columns) + " |")
     found = []
     for category, groups in tally.foreign.items():
         for what, repros in sorted(groups.items(), key=lambda kv: -len(kv[1])):
@@ -507,11 +526,18 @@ def render(tally: Tally, seconds: float, args) -> str:
     return "\n".join([
         "# Robustness", "", PROMISE,
         f"Generated by `experiments/robustness.py --fuzz {args.fuzz} --signals {args.signals} "
-        f"--json-values {args.json_values} --seed {args.seed}` in {seconds:.0f} s; rerun it after changes.",
+        f"--json-values {args.json_values} --kills {args.kills} --batch-signals {args.batch_signals} "
+        f"--seed {args.seed}` in {seconds:.0f} s on {processor()}; rerun it after "
+        "changes.",
         "", "*Clean* means the case ended as promised: success, or one line + exit 2 on the command line "
-        "(an `IpfitError` in the API). Leftovers are hidden temporary files found after the case; "
-        "inputs modified compares SHA-256 before and after.", "", header, *rows, "",
-        "## Foreign exceptions and tracebacks found", "",
+        "(an `IpfitError` in the API, with no foreign warning). The categories from *batch outputs* on are "
+        "the second campaign (`experiments/robustness_hostile.py`): each runs in a real subprocess with a "
+        f"{hostile.LIMIT} s limit, so a *hang* is counted and killed; *data lost* counts shapes without their "
+        "summary row or finished result; *mixed output sets* counts a prefix whose JSON and zero-set CSV "
+        "come from different runs (after the next run, for the killed ones). Leftovers are temporary files "
+        "found after the case; inputs or user files modified compares their bytes before and after.",
+        "", header, *rows, "",
+        "## Foreign exceptions, tracebacks and hangs found", "",
         *(found or ["None."]), "",
     ])
 
@@ -521,6 +547,9 @@ def cli() -> None:
     parser.add_argument("--fuzz", type=int, default=200, help="mutated files per reader format (default 200)")
     parser.add_argument("--signals", type=int, default=12, help="signal cases (real processes; default 12)")
     parser.add_argument("--json-values", type=int, default=12, help="bad values tried per result-JSON key (max 12)")
+    parser.add_argument("--kills", type=int, default=8, help="SIGKILLs while publishing (default 8)")
+    parser.add_argument("--batch-signals", type=int, default=4, help="Ctrl-C cases of a batch (default 4)")
+    parser.add_argument("--only", help="run only the steps whose name contains this (a quick look)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", type=Path, default=ROOT / "docs" / "robustness.md")
     args = parser.parse_args()
@@ -543,8 +572,18 @@ def cli() -> None:
             ("fuzzing", lambda: fuzz(tally, work, make_seed_files(seeds_dir), args.fuzz, args.seed)),
             ("write faults", lambda: write_faults(tally, work, data, result)),
             ("signals", lambda: signals(tally, work, data, args.signals, args.seed)),
+            ("batch outputs", lambda: hostile.batch_outputs(tally, work)),
+            ("batch Ctrl-C", lambda: hostile.batch_signals(tally, work, args.batch_signals)),
+            ("one prefix", lambda: hostile.publishing(tally, work, args.kills, args.seed)),
+            ("special files", lambda: hostile.special_files(tally, work, result)),
+            ("resource bombs", lambda: hostile.resources(tally, work, result)),
+            ("result JSON edge cases", lambda: hostile.result_edges(tally, work, result, data)),
+            ("API inputs", lambda: hostile.api_inputs(tally)),
+            ("optional packages", lambda: hostile.optional_packages(tally, work, result)),
         ]
         for name, step in steps:
+            if args.only and args.only not in name:
+                continue
             t0 = time.perf_counter()
             step()
             print(f"{name}: {time.perf_counter() - t0:.0f} s", file=sys.stderr, flush=True)
