@@ -78,7 +78,7 @@ def _bad_inputs(points):
         ("3-D", points[None], [f"got shape (1, {len(points)}, 2)"]),
         ("4 columns", np.c_[points, points], [f"got shape ({len(points)}, 4)"]),
         ("empty", np.zeros((0, 2)), ["got 0"]),
-        ("NaN", np.vstack([points, [[np.nan, 1.0]]]), ["1 row with NaN or inf (first at row 80)"]),
+        ("NaN", np.vstack([points, [[np.nan, 1.0]]]), ["1 rows with NaN or inf (first at row 80)"]),
         ("inf", np.vstack([[np.inf, 1.0], points]), ["(first at row 0)"]),
     ]
 
@@ -138,7 +138,7 @@ def test_a_dataframe_with_z_gives_3d_points_and_nullable_missing_values_are_name
     frame = pd.DataFrame({"x": [0.0, 1.0, 0.0], "y": [0.0, 0.0, 1.0], "z": [0.0, 0.0, 0.0]})
     assert _strict(ipfit.Normalization.from_points, frame).dim == 3
     frame["z"] = pd.array([0.0, None, 0.0], dtype="Float64")
-    _refused(lambda: ipfit.Normalization.from_points(frame), "1 row with NaN or inf (first at row 1)")
+    _refused(lambda: ipfit.Normalization.from_points(frame), "1 rows with NaN or inf (first at row 1)")
 
 
 def test_masked_arrays_without_masked_values_and_matrices_are_points(circle):

@@ -88,7 +88,7 @@ def as_points(points: ArrayLike, name: str = "points", *, dims=(2, 3), min_point
     bad = ~np.isfinite(arr).all(axis=1)
     if bad.any():
         first = int(np.flatnonzero(bad)[0])
-        raise error(name, "finite coordinates", f"{_plural(int(bad.sum()), 'row')} with NaN or inf (first at row {first})",
+        raise error(name, "finite coordinates", f"{int(bad.sum())} rows with NaN or inf (first at row {first})",
                     "Remove or repair those rows.")
     return np.ascontiguousarray(arr)
 
@@ -125,10 +125,11 @@ def _real_array(value: Any, name: str, dims) -> NDArray[np.float64]:
     return arr.astype(np.float64, copy=False)
 
 
-def check_real_dtype(arr: Any, name: str, expected: str = "an array of real numbers") -> None:
+def check_real_dtype(arr: Any, name: str, expected: str = "an array of numbers") -> None:
     """Refuse an array (numpy, Dask...) whose dtype holds no real numbers: booleans, text..."""
     if arr.dtype.kind in _REFUSED_KINDS:
         what, fix = _REFUSED_KINDS[arr.dtype.kind]
+        expected = "real coordinates" if arr.dtype.kind == "c" else expected  # numbers, but not real ones
         raise error(name, expected, f"{what} (an array of shape {arr.shape} and dtype {arr.dtype})", fix)
 
 

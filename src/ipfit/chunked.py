@@ -52,7 +52,7 @@ def _as_dask(array, name: str, chunk_rows: int):
         array = as_points(array, name)  # lists, DataFrames...: in memory anyway, checked in full
     if array.ndim != 2 or array.shape[1] not in (2, 3):
         raise error(name, "an (N, 2) or (N, 3) array", f"shape {array.shape}")
-    check_real_dtype(array, name, "an (N, 2) or (N, 3) array of real numbers")
+    check_real_dtype(array, name, "an (N, 2) or (N, 3) array of numbers")
     out = array if isinstance(array, da.Array) else da.from_array(array, chunks=(chunk_rows, -1))
     return out.rechunk({1: -1}).astype(np.float64)
 
