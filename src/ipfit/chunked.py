@@ -34,7 +34,7 @@ from numpy.typing import NDArray
 
 from ._numeric import unit_rows
 from ._optional import require
-from ._validation import check_choice, check_degree, check_enough_points, check_int, error
+from ._validation import as_points, check_choice, check_degree, check_enough_points, check_int, check_real_dtype, error
 from .exceptions import ReadError
 from .linear import _PARAMS, LINEAR_METHODS, _fit_problem, _Problem, _r_of_blocks
 from .polynomial import ImplicitPolynomial, Normalization
@@ -49,12 +49,12 @@ DEFAULT_SAMPLE_SIZE = 100_000
 def _as_dask(array, name: str, chunk_rows: int):
     import dask.array as da
 
-    if isinstance(array, da.Array):
-        out = array
-    else:
-        out = da.from_array(array, chunks=(chunk_rows, -1))
-    if out.ndim != 2 or out.shape[1] not in (2, 3):
-        raise error(name, "an (N, 2) or (N, 3) array", f"shape {out.shape}")
+    if not isinstance(array, (da.Array, np.ndarray)) or isinstance(array, np.ma.MaskedArray):
+        array = as_points(array, name)  # lists, DataFrames...: in memory anyway, checked in full
+    if array.ndim != 2 or array.shape[1] not in (2, 3):
+        raise error(name, "an (N, 2) or (N, 3) array", f"shape {array.shape}")
+    check_real_dtype(array, name, "an (N, 2) or (N, 3) array of numbers")
+    out = array if isinstance(array, da.Array) else da.from_array(array, chunks=(chunk_rows, -1))
     return out.rechunk({1: -1}).astype(np.float64)
 
 

@@ -27,7 +27,7 @@ from scipy.spatial import cKDTree
 
 from . import basis
 from ._recent import Recent, array_key
-from ._validation import check_nonnegative, check_positive, error
+from ._validation import as_matching, as_points, check_nonnegative, check_positive, error
 
 __all__ = ["far_field_samples", "term_samples", "term_sample_count", "fused_rows", "FarFieldTerm", "DEFAULT_MARGIN",
            "DEFAULT_CLEARANCE", "DEFAULT_RATIO", "DEFAULT_TERM_WEIGHT"]
@@ -91,6 +91,8 @@ def far_field_samples(u: NDArray[np.float64], normals: NDArray[np.float64], *, c
     >>> bool(np.all(targets[inside] < 0) and np.all(targets[~inside] > 0))
     True
     """
+    u = as_points(u, "u")
+    normals = as_matching(normals, u)
     dim = u.shape[1]
     lo, hi = u.min(axis=0), u.max(axis=0)
     pad = margin * float((hi - lo).max())

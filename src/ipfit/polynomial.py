@@ -20,7 +20,7 @@ from numpy.typing import ArrayLike, NDArray
 from . import basis
 from ._numeric import row_norms
 from ._result_schema import FORMAT_NAME, FORMAT_VERSION, parse_result_text, read_result_json, validate_result
-from ._validation import as_points, error
+from ._validation import as_matching, as_points, error
 from .exceptions import InvalidInputError, ReadError
 
 __all__ = ["Normalization", "ImplicitPolynomial", "FORMAT_NAME", "FORMAT_VERSION"]
@@ -261,8 +261,8 @@ class ImplicitPolynomial:
         coef = coef / norm
         probe = self.with_coefficients(coef)
         if normals is not None and points is not None:
-            grads = probe.gradient(points)
-            agreement = float(np.sum(grads * np.asarray(normals, dtype=np.float64)))
+            pts = as_points(points, "points", dims=(self.dim,))
+            agreement = float(np.sum(probe.gradient(pts) * as_matching(normals, pts)))
             sign = -1.0 if agreement < 0 else 1.0
         else:
             directions = _sphere_directions(self.dim)

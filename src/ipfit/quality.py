@@ -394,12 +394,14 @@ def _measure(model, points, *, details: bool = False, **options):
     if unknown:
         raise TypeError(f"unexpected keyword argument {sorted(unknown)[0]!r}")
     options = {**_MEASURE_DEFAULTS, **options, "ordered_contour": bool(options.get("ordered_contour"))}
-    if not isinstance(model, ImplicitPolynomial) or not isinstance(points, np.ndarray):
+    # checked before the cache key: a masked or complex array must not hit the entry of its data
+    points = as_points(points, min_points=2)
+    if not isinstance(model, ImplicitPolynomial):
         found = _measure_now(model, points, **options)
     else:
         faces = options["faces"]
         key = (array_key(model.coefficients), array_key(model.normalization.center), model.normalization.scale,
-               array_key(np.asarray(points, dtype=np.float64)),
+               array_key(points),
                None if faces is None else array_key(np.asarray(faces)),
                repr(sorted((k, v) for k, v in options.items() if k != "faces")))
         found = _MEASURED.get(key, lambda: _measure_now(model, points, **options))
@@ -426,10 +428,9 @@ def _data_target(pts, faces, ordered_contour, spacing, max_samples, tau) -> tupl
     return _points_target(pts, tau), "points"
 
 
-def _measure_now(model, points, *, faces, ordered_contour, tau, tau_fraction, bounds, margin, resolution, spacing,
+def _measure_now(model, pts, *, faces, ordered_contour, tau, tau_fraction, bounds, margin, resolution, spacing,
                  max_samples):
-    """(Quality, spurious flags, zero-set samples, their distances to the shape, τ)."""
-    pts = as_points(points, min_points=2)
+    """(Quality, spurious flags, zero-set samples, their distances to the shape, τ); ``pts`` checked."""
     dim = pts.shape[1]
     if isinstance(model, ImplicitPolynomial):
         if model.dim != dim:

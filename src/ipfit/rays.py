@@ -18,6 +18,7 @@ original f along the ray (which undoes the rounding of the expansion) and accept
 from __future__ import annotations
 
 import math
+import numbers
 import os
 from functools import lru_cache
 from typing import NamedTuple
@@ -134,10 +135,12 @@ def _newton_on_ray(poly, p: NDArray, e: NDArray, tau: NDArray) -> tuple[NDArray,
 
 
 def _rows(value: ArrayLike, name: str, dim: int) -> NDArray[np.float64]:
-    try:
-        value = np.atleast_2d(np.asarray(value, dtype=np.float64))
-    except (TypeError, ValueError):
-        pass  # as_points words the error
+    # one ray may come as a single point; anything else goes to as_points as given, so that
+    # masks, dtypes and DataFrames are checked there
+    if isinstance(value, np.ndarray) and value.ndim == 1:
+        value = value[np.newaxis]
+    elif isinstance(value, (list, tuple)) and value and all(isinstance(v, numbers.Number) for v in value):
+        value = [value]
     return as_points(value, name, dims=(dim,))
 
 

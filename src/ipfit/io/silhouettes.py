@@ -7,6 +7,8 @@ behind ``read_points("shape.png")`` (PNG, GIF, BMP, TIFF, JPEG... through Pillow
 from __future__ import annotations
 
 import io as _io
+import math
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -17,12 +19,26 @@ from ..exceptions import InvalidInputError, ReadError
 from ..normals import contour_normals
 from ._base import MIN_POINTS, Raw, short
 
-__all__ = ["trace_silhouette", "read_image", "CONTOUR_SPAN", "IMAGE_SUFFIXES"]
+__all__ = ["trace_silhouette", "read_image", "check_image_pixels", "CONTOUR_SPAN", "IMAGE_SUFFIXES",
+           "MAX_IMAGE_PIXELS"]
 
 #: Central-difference span for the normals of traced contours (see ``contour_normals``):
 #: ±1 pixel only sees the 45° staircase of a traced boundary, ±2 averages it.
 CONTOUR_SPAN = 2
+#: Largest image traced, in pixels (width × height). Tracing needs about 18 bytes per pixel
+#: (a padded float64 copy, and find_contours' own copy): 50 million pixels peak near 1 GB. The
+#: size is checked from the file's header, before anything is decoded.
+MAX_IMAGE_PIXELS = 50_000_000
 IMAGE_SUFFIXES = (".png", ".gif", ".bmp", ".tif", ".tiff", ".jpg", ".jpeg", ".webp", ".pgm", ".pbm", ".ppm")
+
+
+def check_image_pixels(width: int, height: int) -> None:
+    """Refuse an image of more than :data:`MAX_IMAGE_PIXELS` pixels, suggesting a size that fits."""
+    pixels = width * height
+    if pixels > MAX_IMAGE_PIXELS:
+        shrink = math.sqrt(MAX_IMAGE_PIXELS / pixels)
+        raise error("image", f"at most {MAX_IMAGE_PIXELS:,} pixels", f"{width} x {height} = {pixels:,}",
+                    f"Downscale it (e.g. to {max(1, int(width * shrink))} x {max(1, int(height * shrink))}).")
 
 
 def trace_silhouette(image: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -36,29 +52,36 @@ def trace_silhouette(image: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.
     Raises
     ------
     InvalidInputError
-        If no shape is found.
+        If no shape is found, or the image has more than :data:`MAX_IMAGE_PIXELS` pixels.
     """
     from skimage import measure
 
-    img = np.asarray(image, dtype=np.float64)
-    if img.ndim != 2 or min(img.shape) < 1:
-        raise error("image", "a 2D array of grey levels", f"shape {img.shape}")
-    lo, hi = float(img.min()), float(img.max())
+    img = np.asarray(image)
+    if img.ndim != 2 or min(img.shape) < 1 or img.dtype.kind not in "biuf":
+        raise error("image", "a 2D array of grey levels", f"shape {img.shape} and dtype {img.dtype}")
+    check_image_pixels(img.shape[1], img.shape[0])
+    # One float64 buffer, already padded with background, changed in place: with the copy
+    # find_contours makes, the peak stays near 18 bytes per pixel (MAX_IMAGE_PIXELS).
+    padded = np.zeros((img.shape[0] + 2, img.shape[1] + 2))
+    inner = padded[1:-1, 1:-1]
+    inner[...] = img
+    del img
+    lo, hi = float(inner.min()), float(inner.max())
     if not hi > lo:
         raise InvalidInputError("image: the image is uniform, no shape to trace. Use a silhouette "
                                 "(a shape on a plain background).")
-    img = (img - lo) / (hi - lo)
-    levels = np.unique(img)
-    if len(levels) == 2:
+    inner -= lo
+    inner /= hi - lo
+    if np.all((inner == 0.0) | (inner == 1.0)):  # two levels, now exactly 0 and 1
         level = 0.5
     else:
         from skimage.filters import threshold_otsu
 
-        level = float(threshold_otsu(img))
-    border = np.concatenate([img[0], img[-1], img[:, 0], img[:, -1]])
+        level = float(threshold_otsu(inner))
+    border = np.concatenate([inner[0], inner[-1], inner[:, 0], inner[:, -1]])
     if (border > level).mean() > 0.5:  # bright background: the shape is the dark part
-        img, level = 1.0 - img, 1.0 - level
-    padded = np.pad(img, 1, constant_values=0.0)
+        np.subtract(1.0, inner, out=inner)
+        level = 1.0 - level
     contours = measure.find_contours(padded, level)
     best, best_area = None, 0.0
     for c in contours:
@@ -85,21 +108,37 @@ def read_image(path: Path, raw: bytes) -> Raw:
     from PIL import Image, UnidentifiedImageError
 
     try:
-        with Image.open(_io.BytesIO(raw)) as im:
+        with _open_image(raw) as im:
+            check_image_pixels(*im.size)  # from the header: nothing is decoded yet
             im.load()
-            if im.mode in ("RGBA", "LA", "PA") or (im.mode == "P" and "transparency" in im.info):
-                alpha = np.asarray(im.convert("RGBA"))[:, :, 3]
-                grey = alpha if alpha.min() != alpha.max() else np.asarray(im.convert("L"))
-            else:
-                grey = np.asarray(im.convert("L"))
+            grey = _grey_levels(im)
+        points, normals = trace_silhouette(grey)
     except UnidentifiedImageError:
         raise ReadError(f"{path}: not a readable image (Pillow does not recognise its content). "
                         "Check that the file is complete and of the format its extension says.") from None
-    except (OSError, ValueError, SyntaxError, Image.DecompressionBombError) as exc:
+    except Image.DecompressionBombError:  # Pillow's own limit, raised before the size is known
+        raise ReadError(f"{path}: expected at most {MAX_IMAGE_PIXELS:,} pixels, got more than "
+                        f"{2 * Image.MAX_IMAGE_PIXELS:,}. Downscale the image.") from None
+    except (OSError, ValueError, SyntaxError) as exc:
+        if isinstance(exc, InvalidInputError):  # ours: the size, or no shape to trace
+            raise ReadError(f"{path}: {str(exc).removeprefix('image: ')}") from None
         raise ReadError(f"{path}: not a readable image ({short(exc)}). "
                         "Check that the file is complete and of the format its extension says.") from None
-    try:
-        points, normals = trace_silhouette(grey)
-    except InvalidInputError as exc:
-        raise ReadError(f"{path}: {str(exc).removeprefix('image: ')}") from None
     return Raw(points, normals, normals_source="contour")
+
+
+def _open_image(raw: bytes):
+    from PIL import Image
+
+    with warnings.catch_warnings():  # Pillow's warning of large images: MAX_IMAGE_PIXELS is lower
+        warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+        return Image.open(_io.BytesIO(raw))
+
+
+def _grey_levels(im) -> NDArray:
+    """Alpha where it varies, else brightness, one byte per pixel."""
+    if im.mode in ("RGBA", "LA", "PA") or (im.mode == "P" and "transparency" in im.info):
+        alpha = np.asarray((im.convert("RGBA") if im.mode == "P" else im).getchannel("A"))
+        if alpha.min() != alpha.max():
+            return alpha
+    return np.asarray(im.convert("L"))

@@ -16,7 +16,7 @@ from scipy.sparse.linalg import cg, spsolve
 from scipy.spatial import ConvexHull, QhullError, cKDTree
 
 from .._numeric import unit_rows, unit_rows_mask
-from .._validation import as_points, error
+from .._validation import as_matching, as_points, error
 from .local import argmax_per_group, blocks, check_workers, default_k, neighbours, standardise
 
 __all__ = ["orient_normals"]
@@ -54,10 +54,7 @@ def orient_normals(points: ArrayLike, normals: ArrayLike, k: int | None = None, 
     (N, D) array: the unit normals, some negated.
     """
     pts = as_points(points, min_points=3)
-    nrm = as_points(normals, "normals", dims=(pts.shape[1],))
-    if nrm.shape != pts.shape:
-        raise error("normals", f"shape {pts.shape} to match the points", f"shape {nrm.shape}",
-                    "Pass one normal per point.")
+    nrm = as_matching(normals, pts)
     nrm, ok = unit_rows_mask(nrm)
     if not ok.all():
         raise error("normals", "non-zero normal vectors", f"{int((~ok).sum())} zero-length normals",
