@@ -230,11 +230,11 @@ def _corrupted_resume(tally, work: Path, pts: np.ndarray) -> None:
         "measures is a list": {**good, "measures": [1]}, "adaptive is a string": {**good, "adaptive": "x"},
         "coefficients removed": {k: v for k, v in good.items() if k != "coefficients"},
         "coefficients NaN": {**good, "coefficients": [float("nan")] * len(good["coefficients"])},
-        "degrees is a string": {**good, "degrees": "x"}, "a 5000-digit coefficient":
-            {**good, "coefficients": [10 ** 4999] + good["coefficients"][1:]},
+        "degrees is a string": {**good, "degrees": "x"},
+        "a 5000-digit coefficient": {**good, "coefficients": ["@"] + good["coefficients"][1:]},
         "normalization null": {**good, "normalization": None}, "quality is a list": {**good, "quality": [0]},
     }
-    texts = {label: json.dumps(doc) for label, doc in corruptions.items()}
+    texts = {label: json.dumps(doc).replace('"@"', "1" + "0" * 4999) for label, doc in corruptions.items()}
     texts["nested 100,000 deep"] = json.dumps({**good, "measures": "@"}).replace('"@"', deep)
     texts["truncated"] = json.dumps(good)[:200]
     for label, text in texts.items():
@@ -536,17 +536,18 @@ def result_edges(tally, work: Path, result: Path, data: Path) -> None:
     deep = "[" * 100_000 + "]" * 100_000
     docs = {
         "normalization null": {**good, "normalization": None},
-        "a 5000-digit coefficient": {**good, "coefficients": [10 ** 4999] + good["coefficients"][1:]},
+        "a 5000-digit coefficient": {**good, "coefficients": ["@"] + good["coefficients"][1:]},
         "centre and scale 1e300": {**good, "normalization": {"center": [1e300, 1e300], "scale": 1e300}},
         "input is a list": {**good, "input": [1]}, "measures is a string": {**good, "measures": "x"},
         "degrees is a dict": {**good, "degrees": {"a": 1}}, "degrees hold strings": {**good, "degrees": ["x"]},
         "quality is a list": {**good, "quality": [1]}, "exponents are strings": {**good, "exponents": "x"},
         "minimal": {k: good[k] for k in ("format", "version", "dim", "degree", "exponents", "coefficients",
                                          "normalization")},
-        "a 400-digit degree": {**good, "degree": 10 ** 400}, "bool coefficients": {**good, "coefficients":
+        "a 400-digit degree": {**good, "degree": "@400"}, "bool coefficients": {**good, "coefficients":
                                                                                   [True] * len(good["coefficients"])},
     }
-    texts = {label: json.dumps(doc) for label, doc in docs.items()}
+    texts = {label: json.dumps(doc).replace('"@"', "1" + "0" * 4999).replace('"@400"', "1" + "0" * 400)
+             for label, doc in docs.items()}
     texts["nested 100,000 deep"] = json.dumps({**good, "info": "@"}).replace('"@"', deep)
     d = data.name
     for label, text in texts.items():
