@@ -100,8 +100,8 @@ CORRUPTIONS = {
     "quality-closed": (lambda d: d["degrees"][1]["quality"].update(closed="yes"), '"degrees[1].quality.closed"',
                        "true or false"),
     "scale-zero": (_nested("normalization", "scale", 0), '"normalization.scale"', "a finite number > 0"),
-    "scale-below-precision": (lambda d: d["normalization"].update(center=[1e300, 0.0], scale=1.0),
-                              '"normalization.scale"', "at least 1e+288"),
+    "scale-below-precision": (lambda d: d["normalization"].update(center=[1e100, 0.0], scale=1.0),
+                              '"normalization.scale"', "at least 1e+88"),
     "exponents-missing": (lambda d: d.pop("exponents"), '"exponents"', "got nothing"),
     "version-newer": (_set("version", 2), '"version"', "got 2"),
 }

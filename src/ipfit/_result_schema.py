@@ -15,6 +15,7 @@ import json
 import math
 import numbers
 import os
+import sys
 from pathlib import Path
 from typing import Any, Callable, Mapping, NamedTuple
 
@@ -24,13 +25,23 @@ from . import basis
 from ._validation import error
 from .exceptions import InvalidInputError, ReadError
 
-__all__ = ["FORMAT_NAME", "FORMAT_VERSION", "Key", "SCHEMA", "validate_result", "read_result_json",
-           "schema_markdown"]
+__all__ = ["FORMAT_NAME", "FORMAT_VERSION", "Key", "SCHEMA", "MAX_DEGREE", "MAX_COORDINATE", "MAX_DEPTH",
+           "validate_result", "read_result_json", "check_coordinates", "schema_markdown"]
 
 FORMAT_NAME = "ipfit"
 FORMAT_VERSION = 1
 _FIX = "Regenerate the result with ipfit, or repair that key."
-_RELATIVE_SCALE = 1e-12
+#: The normalisation's scale must be at least this times the centre's size (and 1e-12):
+#: (x − center) / scale then keeps 4 of float64's 16 significant digits.
+RELATIVE_SCALE = 1e-12
+#: Largest coordinate (centre, scale, bounds, data): squared distances between points this
+#: far apart, summed over 3 axes, stay below float64's 1.8e308.
+MAX_COORDINATE = 1e150
+#: Highest degree a result may hold, per dimension: far beyond what ipfit fits (14 in 2D, 8 in
+#: 3D by default), low enough that one evaluation of f over a default grid stays in seconds.
+MAX_DEGREE = {2: 30, 3: 20}
+#: Deepest nesting of objects and lists; ipfit writes 5 levels.
+MAX_DEPTH = 64
 
 
 # -- value types: (text for the docs and the messages, test) ----------------------------------
@@ -48,6 +59,19 @@ def _is_whole(v) -> bool:
     return _is_int(v) or (_is_number(v) and math.isfinite(v) and float(v).is_integer())
 
 
+def _is_finite(v) -> bool:
+    """A number float64 holds: an integer of 400 digits is "finite" to Python, not to NumPy."""
+    try:
+        return _is_number(v) and math.isfinite(float(v))
+    except OverflowError:
+        return False
+
+
+def _is_float(v) -> bool:
+    """A number float64 holds, or ±Infinity / NaN (see "number" in docs/result-format.md)."""
+    return _is_number(v) and (not _is_int(v) or _is_finite(v))
+
+
 class _Type(NamedTuple):
     text: str
     test: Callable[[Any], bool]
@@ -61,20 +85,18 @@ _TYPES = {
                                and all(isinstance(e, Mapping) for e in v.values())),
     "string": _Type("a string", lambda v: isinstance(v, str)),
     "boolean": _Type("true or false", lambda v: isinstance(v, bool)),
-    "integer >= 0": _Type("a whole number >= 0", lambda v: _is_whole(v) and v >= 0),
-    "integer >= 1": _Type("a whole number >= 1", lambda v: _is_whole(v) and v >= 1),
-    "number": _Type("a number", lambda v: _is_number(v)),
-    "number > 0": _Type("a finite number > 0", lambda v: _is_number(v) and math.isfinite(v) and v > 0),
-    "numbers": _Type("a list of finite numbers", lambda v: isinstance(v, list)
-                     and all(_is_number(e) and math.isfinite(e) for e in v)),
+    "integer >= 0": _Type("a whole number >= 0", lambda v: _is_whole(v) and _is_finite(v) and v >= 0),
+    "integer >= 1": _Type("a whole number >= 1", lambda v: _is_whole(v) and _is_finite(v) and v >= 1),
+    "number": _Type("a number", _is_float),
+    "number > 0": _Type("a finite number > 0", lambda v: _is_finite(v) and v > 0),
+    "numbers": _Type("a list of finite numbers", lambda v: isinstance(v, list) and all(map(_is_finite, v))),
     "exponent rows": _Type("a list of rows of whole numbers >= 0, all of length 2 or all of length 3",
                            lambda v: isinstance(v, list) and bool(v) and all(isinstance(r, list) for r in v)
                            and len({len(r) for r in v}) == 1 and len(v[0]) in (2, 3)
-                           and all(_is_whole(e) and e >= 0 for r in v for e in r)),
+                           and all(_is_whole(e) and _is_finite(e) and e >= 0 for r in v for e in r)),
     "bounds": _Type("a list of [low, high] pairs of finite numbers, one per axis, low <= high",
                     lambda v: isinstance(v, list) and all(
-                        isinstance(r, list) and len(r) == 2 and all(_is_number(e) and math.isfinite(e) for e in r)
-                        and r[0] <= r[1] for r in v)),
+                        isinstance(r, list) and len(r) == 2 and all(map(_is_finite, r)) and r[0] <= r[1] for r in v)),
     '"ipfit"': _Type(f'the string "{FORMAT_NAME}"', lambda v: v == FORMAT_NAME),
     "version": _Type(f"a whole number from 1 to {FORMAT_VERSION} (the newest format this ipfit reads)",
                      lambda v: _is_int(v) and 1 <= v <= FORMAT_VERSION),
@@ -219,6 +241,8 @@ def _got(value) -> str:
         return "an object"
     if isinstance(value, list):
         return f"a list of {len(value)} item{'s' if len(value) != 1 else ''}" if value else "an empty list"
+    if _is_int(value) and not _is_finite(value):
+        return f"a whole number beyond float64's range (about {int(value.bit_length() * math.log10(2)) + 1} digits)"
     if _is_number(value):
         return "NaN" if value != value else repr(value).replace("inf", "Infinity")
     return type(value).__name__
@@ -272,11 +296,66 @@ def _check_normalization(norm: Mapping | None, dim: int, where: str, source: str
         return
     if len(norm["center"]) != dim:
         raise _fail(source, f"{where}.center", f"{dim} values, one per axis", f"{len(norm['center'])} values")
-    # Below this, (x − center) / scale has no significant digits left: every box collapses.
-    smallest = _RELATIVE_SCALE * max(1.0, *(abs(c) for c in norm["center"]))
+    _check_magnitude(norm["center"], f"{where}.center", source)
+    _check_magnitude([norm["scale"]], f"{where}.scale", source)
+    smallest = _smallest_scale(norm["center"])
     if norm["scale"] < smallest:
-        raise _fail(source, f"{where}.scale", f"at least {smallest:.3g} ({_RELATIVE_SCALE:g} × the centre's size, "
-                    "below which coordinates lose every digit)", _got(norm["scale"]))
+        raise _fail(source, f"{where}.scale", f"at least {smallest:.3g} ({RELATIVE_SCALE:g} × the centre's size, "
+                    "below which coordinates keep fewer than 4 digits)", _got(norm["scale"]))
+
+
+def _smallest_scale(center) -> float:
+    # Below this, (x − center) / scale keeps fewer than 4 of float64's 16 digits.
+    return RELATIVE_SCALE * max(1.0, *(abs(float(c)) for c in center))
+
+
+def _check_magnitude(values, where: str, source: str) -> None:
+    largest = max((abs(float(v)) for v in values), default=0.0)
+    if largest > MAX_COORDINATE:
+        raise _fail(source, where, f"values of magnitude at most {MAX_COORDINATE:g} (beyond it squared distances "
+                    "overflow float64)", f"{largest:.3g}")
+
+
+def _check_degree(degree: int, dim: int, where: str, source: str) -> None:
+    """Refuse a degree whose work (tables, grids) could not end in reasonable time, before any of it."""
+    if degree > MAX_DEGREE[dim]:
+        raise _fail(source, where, f"a degree of at most {MAX_DEGREE[dim]} in {dim}D (ipfit's limit for results)",
+                    f"degree {degree}" if degree < 10**6 else "a degree above a million")
+
+
+def _check_depth(data: Mapping, source: str) -> None:
+    """Refuse nesting deeper than :data:`MAX_DEPTH` (checked without recursion: that is what fails)."""
+    stack = [(data, 1)]
+    while stack:
+        value, depth = stack.pop()
+        if depth > MAX_DEPTH:
+            raise InvalidInputError(f"{source}: nested more than {MAX_DEPTH} levels deep (ipfit writes 5). "
+                                    "Pass a result written by ipfit.")
+        children = value.values() if isinstance(value, Mapping) else value if isinstance(value, list) else ()
+        stack.extend((child, depth + 1) for child in children if isinstance(child, (Mapping, list)))
+
+
+def check_coordinates(points: np.ndarray, name: str = "points") -> None:
+    """Refuse data whose coordinates no result could record: beyond :data:`MAX_COORDINATE`, or
+    an extent too small for its offset from the origin (the normalisation's scale limit).
+
+    ``fit`` calls it before fitting and the result commands on their data, so both fail up
+    front with a message about the data, not about a result written afterwards.
+    """
+    from ._validation import error
+
+    largest = float(np.abs(points).max(initial=0.0))
+    if largest > MAX_COORDINATE:
+        raise error(name, f"coordinates of magnitude at most {MAX_COORDINATE:g} (beyond it squared distances "
+                    "overflow float64)", f"coordinates up to {largest:.3g}", "Rescale the data (other units).")
+    center = points.mean(axis=0)
+    spread = float(np.linalg.norm(points - center, axis=1).mean()) if len(points) else 0.0
+    smallest = _smallest_scale(center)
+    if 0 < spread < smallest:  # identical points have their own message where the extent is used
+        raise error(name, f"an extent of at least {RELATIVE_SCALE:g} × the data's offset from the origin (below "
+                    "that float64 keeps fewer than 4 digits of the shape)",
+                    f"points spread over {spread:.3g} around {np.abs(center).max():.3g}",
+                    "Subtract the offset first (move the data near the origin).")
 
 
 def validate_result(data: Any, source: str = "result") -> dict:
@@ -300,10 +379,12 @@ def validate_result(data: Any, source: str = "result") -> dict:
         raise InvalidInputError(f'{source}: not an ipfit result (expected "format": "{FORMAT_NAME}", got '
                                 f'{_got(data.get("format")) if "format" in data else "no format"}). '
                                 "Pass a result written by ipfit.")
+    _check_depth(data, source)
     _walk(data, "", "", source)
     rows = [[int(e) for e in row] for row in data["exponents"]]
     dim = len(rows[0])
     degree = max(sum(row) for row in rows)
+    _check_degree(degree, dim, "exponents", source)
     if data.get("dim") is not None and data["dim"] != dim:
         raise _fail(source, "dim", f"{dim}, the number of columns of the exponents", _got(data["dim"]))
     if data.get("degree") is not None and data["degree"] != degree:
@@ -317,11 +398,14 @@ def validate_result(data: Any, source: str = "result") -> dict:
                     f"{len(data['coefficients'])} values")
     _check_polynomial(data["coefficients"], dim, degree, "coefficients", source)
     _check_normalization(data.get("normalization"), dim, "normalization", source)
-    if data.get("bounds") is not None and len(data["bounds"]) != dim:
-        raise _fail(source, "bounds", f"{dim} [low, high] pairs, one per axis", f"{len(data['bounds'])} pairs")
+    if data.get("bounds") is not None:
+        if len(data["bounds"]) != dim:
+            raise _fail(source, "bounds", f"{dim} [low, high] pairs, one per axis", f"{len(data['bounds'])} pairs")
+        _check_magnitude([e for pair in data["bounds"] for e in pair], "bounds", source)
     tried = []
     for i, entry in enumerate(data.get("degrees") or ()):
         g = int(entry["degree"])
+        _check_degree(g, dim, f"degrees[{i}].degree", source)
         tried.append(g)
         if entry.get("coefficients") is not None:
             _check_polynomial(entry["coefficients"], dim, g, f"degrees[{i}].coefficients", source)
@@ -338,6 +422,7 @@ def validate_result(data: Any, source: str = "result") -> dict:
         except ValueError:
             raise _fail(source, f"{where}.coefficients", f"C(g + {dim}, {dim}) values for some degree g",
                         f"{len(coef)} values") from None
+        _check_degree(g, dim, f"{where}.coefficients", source)
         if entry.get("degree") is not None and entry["degree"] != g:
             raise _fail(source, f"{where}.degree", f"{g}, the degree of its {len(coef)} coefficients",
                         _got(entry["degree"]))
@@ -369,6 +454,9 @@ def parse_result_text(text: str, source: str, kind: type[InvalidInputError] = In
             from None
     except RecursionError:
         raise kind(f"{source}: JSON nested too deeply. Pass a result written by ipfit.") from None
+    except ValueError:  # an integer of more digits than Python converts
+        raise kind(f"{source}: a number in it has more than {sys.get_int_max_str_digits()} digits. "
+                   "Pass a result written by ipfit.") from None
     if not isinstance(data, dict):
         raise kind(f"{source}: not an ipfit result (a JSON object was expected, got {_got(data)}). "
                    "Pass a result written by ipfit.")

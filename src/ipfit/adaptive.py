@@ -18,6 +18,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from . import basis
 from ._result import Result
+from ._result_schema import check_coordinates
 from ._validation import (as_faces, as_normals, as_points, check_choice, check_enough_points, check_int,
                           check_nonnegative, check_real, check_rng, error)
 from .linear import LINEAR_METHODS, fit_linear
@@ -295,6 +296,7 @@ def fit_adaptive(points: ArrayLike, normals: ArrayLike | None = None, *, method:
     (2, True)
     """
     pts = as_points(points)
+    check_coordinates(pts)  # the result must be readable: refuse up front what it could not record
     dim = pts.shape[1]
     method, options, rule, epsilon, delta, min_degree = check_settings(method, options, rule, epsilon, delta,
                                                                        min_degree, max_degree)

@@ -444,8 +444,9 @@ def _measure_now(model, pts, *, faces, ordered_contour, tau, tau_fraction, bound
         raise error("model", "an ImplicitPolynomial or a ZeroSet", type(model).__name__)
     diagonal = float(np.linalg.norm(np.ptp(pts, axis=0)))
     if tau is None:
-        if diagonal == 0:
-            raise error("points", "points with some extent", "identical points", "Pass tau explicitly.")
+        if not 0 < diagonal < np.inf:  # tau defaults to a fraction of the diagonal: none to take
+            raise error("points", "points whose box has a diagonal > 0 and finite in float64",
+                        f"a diagonal of {diagonal:.3g}", "Pass the tolerance tau= (ipfit score --tau), or other points.")
         tau = check_positive(tau_fraction, "tau_fraction") * diagonal
     tau = check_positive(tau, "tau")
     # Samples only find candidate elements (distances are exact to those) and weigh the zero

@@ -35,13 +35,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ._atomic import write_text_atomic
-from ._result_schema import (FORMAT_NAME, FORMAT_VERSION, SCHEMA, Key, parse_result_text, read_result_json,
-                             schema_markdown, validate_result)
+from ._result_schema import (FORMAT_NAME, FORMAT_VERSION, MAX_COORDINATE, MAX_DEGREE, MAX_DEPTH, SCHEMA, Key,
+                             parse_result_text, read_result_json, schema_markdown, validate_result)
 from ._validation import error
 from .exceptions import InvalidInputError, ReadError
 from .polynomial import ImplicitPolynomial, Normalization, to_jsonable
 
-__all__ = ["FORMAT_NAME", "FORMAT_VERSION", "SCHEMA", "Key", "validate_result", "load_result", "result_view",
+__all__ = ["FORMAT_NAME", "FORMAT_VERSION", "MAX_DEGREE", "MAX_COORDINATE", "MAX_DEPTH", "SCHEMA", "Key",
+           "validate_result", "load_result", "result_view",
            "ResultView", "DegreeFit", "dumps_result", "write_result", "read_result_json", "schema_markdown"]
 
 

@@ -493,9 +493,11 @@ def extract_zero_set(poly: ImplicitPolynomial, bounds: ArrayLike | None = None, 
         from skimage.measure import marching_cubes
 
         try:
-            verts, faces, _, _ = marching_cubes(values, level=0.0, spacing=tuple(spacing), allow_degenerate=False)
+            verts, faces, _, _ = marching_cubes(values, level=0.0, allow_degenerate=False)
         except (ValueError, RuntimeError):  # no crossing left after degenerate faces are dropped
             verts, faces = np.empty((0, 3)), np.empty((0, 3), dtype=np.int64)
-        verts = verts + lo
+        # Grid units, scaled here in float64: skimage scales by the spacing in float32, which
+        # overflows beyond 3e38 (and every face degenerates).
+        verts = verts.astype(np.float64) * spacing + lo
         faces = faces.astype(np.int64)
     return ZeroSet(3, box, spacing, shape, vertices=verts, faces=faces, reaches_boundary=reaches, polynomial=poly)

@@ -83,6 +83,28 @@ def _warning_line(command: str):
     return show
 
 
+#: The options of each command that bound its memory, named when it runs out.
+_MEMORY_OPTIONS = {
+    "fit": "a lower --max-points or --max-degree",
+    "batch": "fewer --workers, or a lower --max-degree",
+    "normals": "a lower --k",
+    "mesh": "a lower --resolution",
+    "plot": "a lower --resolution or --dpi",
+    "view": "a lower --max-faces",
+    "score": "a lower --resolution",
+    "render": "a smaller --size",
+    "reproduce": "--quick",
+}
+
+
+def _memory_line(command: str, args) -> str:
+    """``out of memory`` naming the input and the command's own options that use less of it."""
+    what = getattr(args, "result", None) or getattr(args, "input", None)
+    fix = _MEMORY_OPTIONS.get(command)
+    return (f"out of memory{f' on {what}' if what else ''}. "
+            + (f"Try {fix}, or smaller data." if fix else "Try smaller data."))
+
+
 def _interrupted_line(command: str, signum: int, before: int) -> str:
     from .. import _atomic
 
@@ -124,6 +146,7 @@ def _main(argv: Sequence[str] | None) -> int:
         warnings.simplefilter("ignore", RuntimeWarning)
         warnings.simplefilter("default", IpfitWarning)
         warnings.showwarning = _warning_line(label)
+        args = None
         try:
             parser = build_parser()
             args, extra = parser.parse_known_args(argv)
@@ -165,8 +188,7 @@ def _main(argv: Sequence[str] | None) -> int:
             print(f"ipfit {label}: error: {error}", file=sys.stderr)
             return 2
         except MemoryError:
-            print(f"ipfit {label}: error: out of memory. Use smaller inputs or options (--resolution, --dpi, ...).",
-                  file=sys.stderr)
+            print(f"ipfit {label}: error: {_memory_line(command, args)}", file=sys.stderr)
             return 2
         finally:
             _atomic.discard_temporaries()

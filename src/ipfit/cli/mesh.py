@@ -150,12 +150,18 @@ def _recorded_input(view):
     return None, "the data it records could not be found: " + "; ".join(reasons)
 
 
+def _recorded_name(view) -> str:
+    """How messages name the data a result records."""
+    return f"{view.input.get('path') or view.input.get('source')} (the data {view.source} records)"
+
+
 def load_points(spec: str | None, view, command: str, *, required: bool = False, missing: str = ""):
     """(points, faces) of --points DATA, or of the data recorded in the result, or (None, None).
 
     When the recorded data cannot be found, one warning line says so and what is done
     instead (``missing``); with ``required`` it is an error.
     """
+    from .._result_schema import check_coordinates
     from ..exceptions import InvalidInputError
     from ._common import load_input
 
@@ -172,12 +178,14 @@ def load_points(spec: str | None, view, command: str, *, required: bool = False,
         if data.points.shape[1] != view.dim:
             raise InvalidInputError(f"--points: expected {view.dim}D points to match the result, got "
                                     f"{data.points.shape[1]}D in {spec}. Pass the data the result was fitted to.")
+    check_coordinates(data.points, "--points" if spec is not None else _recorded_name(view))
     faces = data.faces if data.faces is not None and len(data.faces) else None
     return data.points, faces
 
 
 def trim_data(view, spec: str | None):
     """(points, faces) to trim to: --points DATA, else the data the result records."""
+    from .._result_schema import check_coordinates
     from ..exceptions import InvalidInputError
 
     if spec is not None:
@@ -185,6 +193,7 @@ def trim_data(view, spec: str | None):
     data, why = _recorded_input(view)
     if data is None:
         raise InvalidInputError(f"--trim: it needs the data to trim to, and {why}. Pass the data with --points DATA.")
+    check_coordinates(data.points, _recorded_name(view))
     return data.points, data.faces if data.faces is not None and len(data.faces) else None
 
 
@@ -204,6 +213,7 @@ def result_box(view, spec: str | None, margin: float, command: str):
 
 
 def run(args: argparse.Namespace) -> int:
+    from ..exceptions import InvalidInputError
     from ..results import result_view
     from ..zeroset import data_bounds, extract_zero_set
 
@@ -221,6 +231,10 @@ def run(args: argparse.Namespace) -> int:
         box = data_bounds(points if args.points is not None or view.bounds is None else view.bounds.T, args.margin)
         zero_set, summary = trim_for_export(extract_zero_set(poly, bounds=box, resolution=args.resolution), points,
                                             faces, args.trim)
+    if zero_set.is_empty:  # refused here, where the output's own name (not its staged copy) is known
+        raise InvalidInputError(f"{args.output}: the degree-{poly.degree} zero set is empty inside the box "
+                                f"{box.tolist()}, so there is nothing to write. Widen the box (--margin, or "
+                                "--points DATA), or check the fit.")
     with outputs.writing() as stage:
         zero_set.save(stage(args.output))
     what = (f"{len(zero_set.vertices)} vertices, {len(zero_set.faces)} faces" if zero_set.dim == 3

@@ -38,7 +38,7 @@ def run(args: argparse.Namespace) -> int:
     from ..rays import render
     from ..results import result_view
     from ._common import Outputs, recorded_sources
-    from .mesh import result_box
+    from .mesh import result_box, warn
 
     if not args.output.lower().endswith(".png"):
         raise InvalidInputError(f"--output: expected a file ending in .png, got {args.output!r}. Use e.g. out.png.")
@@ -52,5 +52,8 @@ def run(args: argparse.Namespace) -> int:
     with outputs.writing() as stage:
         image = render(poly, box, stage(args.output), size=tuple(args.size), view=tuple(args.view), up=args.up)
     covered = float((image < 255).any(axis=2).mean())
+    if covered == 0:
+        warn(NAME, f"no ray meets the degree-{poly.degree} zero set inside the box {box.round(6).tolist()}: the "
+             "image is blank. Frame the surface with --points DATA or a larger --margin, or check the fit.")
     print(f"{args.output}: {image.shape[1]}x{image.shape[0]} ray-cast image, surface on {covered:.0%} of the pixels")
     return 0

@@ -46,17 +46,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..exceptions import InvalidInputError
-    from ..results import load_result
+    from .._result_schema import check_coordinates
+    from ..results import result_view
     from ..viewer import MAX_FACES, write_html
     from ._common import Outputs, load_input, recorded_sources
 
     check_trim_with_points(args)
-    data = load_result(args.result)
+    view = result_view(args.result)
+    data = view.data
     output = Path(args.output) if args.output else Path(args.result).with_suffix(".html")
     outputs = Outputs([output], inputs=[args.result, args.points, *recorded_sources(data)])
-    dim = int(data.get("dim") or len(data.get("normalization", {}).get("center", [])) or 0)
+    dim = view.dim  # from the exponents: "dim" and "normalization" are optional keys
     points = faces = normals = None
-    recorded = (data.get("input") or {}).get("source") if isinstance(data.get("input"), dict) else None
+    recorded = view.input.get("source")
     spec = args.points or (None if args.no_points else recorded)
     if spec is not None:
         try:
@@ -71,6 +73,7 @@ def run(args: argparse.Namespace) -> int:
                                         f"{found.points.shape[1]}D. Pass the data the result was fitted to.")
             found = None
         if found is not None:
+            check_coordinates(found.points, "--points" if args.points else spec)
             points, faces = found.points, found.faces
             normals = None if args.no_normals else found.normals
     if args.trim is not None and points is None:
