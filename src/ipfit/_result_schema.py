@@ -37,9 +37,8 @@ RELATIVE_SCALE = 1e-12
 #: Largest coordinate (centre, scale, bounds, data): squared distances between points this
 #: far apart, summed over 3 axes, stay below float64's 1.8e308.
 MAX_COORDINATE = 1e150
-#: Highest degree a result may hold, per dimension: far beyond what ipfit fits (14 in 2D, 8 in
-#: 3D by default), low enough that one evaluation of f over a default grid stays in seconds.
-MAX_DEGREE = {2: 30, 3: 20}
+#: Highest degree a result may hold, per dimension: the highest ipfit fits.
+MAX_DEGREE = basis.MAX_DEGREE
 #: Deepest nesting of objects and lists; ipfit writes 5 levels.
 MAX_DEPTH = 64
 

@@ -273,9 +273,12 @@ def check_rng(rng: Any) -> np.random.Generator:
 
 
 def check_enough_points(n_points: int, dim: int, degree: int, name: str = "points") -> None:
-    """Refuse a degree whose polynomial has more coefficients than there are points."""
-    from .basis import n_coefficients
+    """Refuse a degree above ipfit's limit, or whose polynomial has more coefficients than there are points."""
+    from .basis import MAX_DEGREE, n_coefficients
 
+    if degree > MAX_DEGREE[dim]:
+        raise error("degree", f"at most {MAX_DEGREE[dim]} in {dim}D (ipfit's limit)", str(degree),
+                    "Lower the degree.")
     d = n_coefficients(dim, degree)
     if n_points < d:
         raise error(name, f"at least {d} points for a degree-{degree} {dim}D polynomial ({d} coefficients)",

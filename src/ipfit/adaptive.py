@@ -390,6 +390,9 @@ def _top_degree(n_points: int, dim: int, min_degree: int, max_degree: int | None
         top = (CAPTURE_MAX_DEGREE if rule == "capture" else DEFAULT_MAX_DEGREE)[dim]
     else:
         top = check_int(max_degree, "max_degree", minimum=min_degree)
+        if top > basis.MAX_DEGREE[dim]:
+            raise error("max_degree", f"at most {basis.MAX_DEGREE[dim]} in {dim}D (ipfit's limit)", str(top),
+                        "Lower the maximum degree.")
     largest_possible = max((g for g in range(1, top + 1) if basis.n_coefficients(dim, g) <= n_points), default=0)
     if rule == "capture" and max_degree is None:
         comfortable = max((g for g in range(1, top + 1)

@@ -15,6 +15,7 @@ from numpy.typing import NDArray
 from scipy import sparse
 
 __all__ = [
+    "MAX_DEGREE",
     "n_coefficients",
     "degree_from_n_coefficients",
     "exponents",
@@ -29,6 +30,11 @@ __all__ = [
     "point_blocks",
     "blocked_products",
 ]
+
+#: Highest degree ipfit fits or reads, per dimension: far beyond what the data need (14 in 2D and
+#: 8 in 3D by default), low enough that one evaluation of f over a default grid stays in seconds
+#: (a degree-20 surface has 1,771 coefficients).
+MAX_DEGREE = {2: 30, 3: 20}
 
 
 def n_coefficients(dim: int, degree: int) -> int:
