@@ -203,6 +203,7 @@ def test_a_damaged_journal_is_not_followed(tmp_path):
     victim = tmp_path / "keep.txt"
     victim.write_text("mine")
     key = _atomic._key(tmp_path / "r.json")
+    (tmp_path / f".ipfit-{key}.lock").write_text("999999\n")  # what a killed writer leaves
     (tmp_path / f".ipfit-{key}-x.partial").write_text("stale")
     (tmp_path / f".ipfit-{key}.journal").write_text(json.dumps(
         {"renames": [[f".ipfit-{key}-x.partial", "keep.txt"], [f".ipfit-{key}-x.partial", "../r.json"], "junk"]}))

@@ -160,18 +160,23 @@ def _holder(fd: int) -> str:
     return ""
 
 
-def _acquire(path: Path, target: Path) -> int:
-    """Lock ``path`` (made if missing), waiting up to :data:`LOCK_WAIT` seconds for another process."""
+def _acquire(path: Path, target: Path) -> tuple[int, bool]:
+    """Lock ``path`` (made if missing), waiting up to :data:`LOCK_WAIT` seconds for another process.
+
+    Also says whether a killed holder left it: a holder writes its pid into the file and removes
+    the file when done, so only a dead one leaves a non-empty lock file.
+    """
     deadline = time.monotonic() + LOCK_WAIT
     while True:
         fd = _open_lock(path, target)
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             if _still_there(fd, path, target):
+                left = os.fstat(fd).st_size > 0
                 with contextlib.suppress(OSError):  # who holds it, for the message of the next one
                     os.ftruncate(fd, 0)
                     os.write(fd, f"{os.getpid()}\n".encode())
-                return fd
+                return fd, left
         except BlockingIOError:
             holder = _holder(fd)
             if time.monotonic() >= deadline:
@@ -181,7 +186,7 @@ def _acquire(path: Path, target: Path) -> int:
             time.sleep(0.05)
         except OSError as exc:  # a file system without locks (some network mounts): write unlocked
             if exc.errno in (errno.ENOLCK, errno.EOPNOTSUPP):
-                return fd
+                return fd, False
             os.close(fd)
             raise aimed_at(exc, target) from None
         except BaseException:
@@ -192,7 +197,7 @@ def _acquire(path: Path, target: Path) -> int:
 
 def _hold(target: Path) -> tuple | None:
     """Hold the lock of ``target``'s output set (re-entrant within this process). The first hold
-    finishes or clears what a killed writer of the set left (:func:`settle`)."""
+    finishes or clears what a killed writer of the set left (see :func:`_recover`)."""
     if fcntl is None:  # pragma: no cover
         return None
     folder, key = _folder_of(target), _key(target)
@@ -207,9 +212,11 @@ def _hold(target: Path) -> tuple | None:
             held[1] += 1
             return ident
         path = Path(os.path.abspath(folder / f"{_HIDDEN}{key}.lock"))
-        _locks[ident] = [_acquire(path, target), 1, path]
+        fd, left = _acquire(path, target)
+        _locks[ident] = [fd, 1, path]
         try:
-            _recover(folder, key)
+            if left:  # only then can there be anything to finish or clear (no listing of big folders)
+                _recover(folder, key)
         except OSError as exc:
             _release(ident)
             raise aimed_at(exc, target) from None
