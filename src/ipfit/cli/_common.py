@@ -15,7 +15,7 @@ from typing import Callable, Iterator, Mapping, NamedTuple, Sequence
 import numpy as np
 
 from .. import _atomic
-from ..exceptions import InvalidInputError, ReadError
+from ..exceptions import InvalidInputError, IpfitError, ReadError
 
 
 class Input(NamedTuple):
@@ -275,16 +275,18 @@ def fit_prefix(output: str) -> Path:
 class Outputs:
     """Output files checked before the work starts and written all together or not at all.
 
-    Construction checks every path (not a folder, not one of ``inputs``, an allowed
-    extension) and reserves its temporary sibling, which proves the folder exists (or,
-    with ``make_folders``, can be made), is writable and has room; on any failure nothing
-    is left behind. Then::
+    Construction checks every path (not a folder, not a device, FIFO or socket, not one of
+    ``inputs``, an allowed extension) and reserves its temporary sibling, which locks the
+    output set against other processes (see :mod:`ipfit._atomic`) and proves the folder
+    exists (or, with ``make_folders``, can be made), is writable and has room; on any
+    failure nothing is left behind. Then::
 
         with outputs.writing() as stage:
             writer(stage(final))          # write each output to its staged path
 
-    renames every staged file into place when the block ends normally, removes them all
-    when it raises, and holds SIGINT/SIGTERM meanwhile so finished work is not lost.
+    publishes every staged file as one set (:func:`ipfit._atomic.publish_set`) when the
+    block ends normally, removes them all when it raises, and holds SIGINT/SIGTERM meanwhile
+    so finished work is not lost. Errors name the outputs, never their temporary files.
     """
 
     def __init__(self, paths: Sequence[str | os.PathLike], *, inputs: Sequence[str | os.PathLike | None] = (),
@@ -300,6 +302,7 @@ class Outputs:
                 if final.is_dir():
                     raise InvalidInputError(f"{option}: {final} is a folder. Choose a file name (a file inside "
                                             "that folder works too).")
+                _atomic.refuse_special(final, option)
                 source = next((f for f in files if _same_file(final, f)), None)
                 if source is not None:
                     raise InvalidInputError(f"{option}: {final} is the input file {source}; writing it would "
@@ -318,18 +321,27 @@ class Outputs:
         self._used.add(Path(final))
         return self._staged[Path(final)]
 
+    def _publication(self) -> list[tuple[Path, Path]]:
+        used = [(tmp, final) for final, tmp in self._staged.items() if final in self._used]
+        # the JSON last: a result whose JSON is new has every other output new as well
+        return sorted(used, key=lambda pair: pair[1].suffix.lower() == ".json")
+
+    def _named(self, exc: BaseException) -> BaseException:
+        """``exc`` naming the output it is about, never its temporary file."""
+        for final, tmp in self._staged.items():
+            exc = _atomic.reaimed(exc, tmp, final)
+        if isinstance(exc, OSError) and self._staged:  # another hidden file of the set (its journal)
+            exc = _atomic.aimed_at(exc, next(iter(self._staged)))
+        return exc
+
     @contextlib.contextmanager
     def writing(self) -> Iterator[Callable[[str | os.PathLike], Path]]:
         with deferred_signals("writing the outputs"):
             try:
                 yield self._stage
-                for final, tmp in self._staged.items():
-                    if final in self._used:
-                        _atomic.publish(tmp, final)
-            except OSError as exc:
-                for final in self._staged:  # name the output, not its temporary file
-                    exc = _atomic.aimed_at(exc, final)
-                raise exc from None
+                _atomic.publish_set(self._publication())
+            except (OSError, IpfitError) as exc:
+                raise self._named(exc) from None
             finally:
                 self.discard()
 

@@ -271,11 +271,37 @@ def read_stl(path: Path, raw: bytes) -> Raw:
     return _read_trimesh(path, raw, "stl")
 
 
+def _checked_resolver(path: Path):
+    """trimesh's resolver of the files a scene refers to (glTF buffers, COLLADA images), refusing
+    a name outside the scene's folder and one that is not a regular file (a FIFO would hang)."""
+    import os
+
+    from trimesh.resolvers import FilePathResolver
+
+    from .._atomic import special_kind
+
+    class Resolver(FilePathResolver):
+        def get(self, name: str):
+            folder = Path(self.parent).resolve()
+            literal = (folder / name.strip()).resolve()
+            if not literal.is_relative_to(folder):
+                raise ReadError(f"{path}: it refers to '{name}', outside its folder; ipfit reads only files beside "
+                                "the scene. Move that file next to it.")
+            # every name trimesh may try for it (as given, without a leading '/', its base name)
+            for candidate in (name.strip(), name.strip().lstrip("/"), os.path.basename(name)):
+                kind = special_kind(folder / candidate)
+                if kind is not None:
+                    raise ReadError(f"{path}: it refers to '{name}', a {kind}, not a regular file. "
+                                    "Point it to the data file itself.")
+            return super().get(name)
+
+    return Resolver(str(path))
+
+
 def read_scene(path: Path, raw: bytes) -> Raw:
     """glTF 2.0 (.gltf with its buffers beside it, or .glb), 3MF and COLLADA (.dae): every mesh
     of the scene, each moved by its node's transform, merged into one cloud."""
     import trimesh
-    from trimesh.resolvers import FilePathResolver
 
     if path.suffix.lower() == ".3mf":
         optional_module("lxml", path, "3MF")
@@ -286,13 +312,13 @@ def read_scene(path: Path, raw: bytes) -> Raw:
         optional_module("collada", path, "COLLADA")
         from trimesh.exchange.dae import load_collada
 
-        kind, load, kwargs = "dae", load_collada, {"resolver": FilePathResolver(str(path))}
+        kind, load, kwargs = "dae", load_collada, {"resolver": _checked_resolver(path)}
     else:
         from trimesh.exchange import gltf
 
         binary = raw[:4] == b"glTF"
         kind, load = ("glb", gltf.load_glb) if binary else ("gltf", gltf.load_gltf)
-        kwargs = {"resolver": None if binary else FilePathResolver(str(path)), "merge_primitives": True,
+        kwargs = {"resolver": None if binary else _checked_resolver(path), "merge_primitives": True,
                   "skip_materials": True}
     with quiet_logger("trimesh"):
         parsed = load(_io.BytesIO(raw), **kwargs)

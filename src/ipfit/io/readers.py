@@ -13,8 +13,10 @@ tables, scanners) and add a line to :data:`FORMATS`.
 
 from __future__ import annotations
 
+import errno
 import os
 import re
+import stat
 import warnings
 from pathlib import Path
 from typing import Callable, NamedTuple
@@ -22,6 +24,7 @@ from typing import Callable, NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
+from .._atomic import special_kind
 from .._numeric import unit_rows_mask
 from .._validation import check_int, check_rng
 from ..exceptions import NormalsDroppedWarning, ReadError
@@ -225,9 +228,30 @@ def _format_for(path: Path) -> Format:
     return fmt
 
 
+def _refuse_special(path: Path, kind: str | None = None) -> None:
+    """A FIFO, socket or device (``/dev/stdin``) is refused before anything reads it: reading
+    would wait for a writer forever, or never end."""
+    kind = kind or special_kind(path)
+    if kind is not None:
+        raise ReadError(f"{path}: is a {kind}, not a regular file; ipfit reads only regular files. "
+                        "Save the data to a file first and give its path.")
+
+
+def _open_regular(path: Path):
+    if path.is_dir():
+        raise IsADirectoryError(errno.EISDIR, os.strerror(errno.EISDIR), str(path))
+    # O_NONBLOCK: a path swapped for a FIFO after the check does not make open() wait for a writer
+    fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_NOCTTY)
+    if not stat.S_ISREG(os.fstat(fd).st_mode):
+        os.close(fd)
+        _refuse_special(path, special_kind(path) or "special file")
+    return os.fdopen(fd, "rb")
+
+
 def _read_bytes(path: Path) -> bytes:
     try:
-        raw = path.read_bytes()
+        with _open_regular(path) as fh:
+            raw = fh.read()
     except FileNotFoundError:
         raise ReadError(f"{path}: no such file. Check the path.") from None
     except IsADirectoryError:
@@ -244,6 +268,7 @@ def _read_bytes(path: Path) -> bytes:
 def _parse(path: Path) -> tuple[Raw, int]:
     """The format's reader on the file's bytes, every failure turned into one ReadError line;
     also the number of rows the file holds."""
+    _refuse_special(path)
     fmt = _format_for(path)
     raw = _read_bytes(path)
     try:
