@@ -178,6 +178,18 @@ def test_sigkill_while_publishing_is_finished_by_the_next_writer(tmp_path, runs)
     assert _settled(tmp_path, runs) == "b"
 
 
+def test_a_result_read_after_a_killed_publication_is_the_completed_set(tmp_path, runs):
+    """A reader of PREFIX.json (mesh, score, plot...) finishes the killed run's renames first, so it
+    never reads the old JSON beside the new pictures."""
+    from ipfit.results import load_result
+
+    _kill_while_writing(tmp_path, runs, lambda f: any(f.glob(".ipfit-*.journal")), pause=0.0)
+    assert _atomic.unfinished(tmp_path / "r.json"), "the kill came too late to test the roll-forward"
+    load_result(tmp_path / "r.json")
+    assert not _atomic.unfinished(tmp_path / "r.json") and hidden(tmp_path) == []
+    assert run_of(tmp_path, runs) == "b"
+
+
 def test_sigkill_while_writing_leaves_the_old_set_and_the_next_run_cleans_up(tmp_path, runs, capsys):
     _kill_while_writing(tmp_path, runs, _writing, pause=0.0)
     assert hidden(tmp_path), "the kill came too late: nothing was left to clean"
@@ -337,6 +349,20 @@ def test_a_fifo_as_input_is_refused_not_waited_on(tmp_path, runs, capsys, comman
     one_error_line(err, command.split()[0])
     assert f"{fifo}: is a named pipe (FIFO), not a regular file" in err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["data.csv"]
+
+
+@pytest.mark.parametrize("command", ["mesh", "plot", "score", "export", "view", "render"])
+def test_a_fifo_as_result_is_refused_not_waited_on(tmp_path, capsys, command):
+    fifo = tmp_path / "r.json"
+    os.mkfifo(fifo)
+    out = {"mesh": ["-o", str(tmp_path / "m.svg")], "plot": ["-o", str(tmp_path / "p.png")], "score": [],
+           "export": ["--to", "c"], "view": ["-o", str(tmp_path / "v.html")], "render": ["-o", str(tmp_path / "i.png")]}
+    with unblocking(fifo):
+        assert main([command, str(fifo), *out[command]]) == 2
+    err = capsys.readouterr().err
+    one_error_line(err, command)
+    assert f"{fifo}: is a named pipe (FIFO), not a result file" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["r.json"]
 
 
 def test_stdin_as_input_is_refused(tmp_path):

@@ -46,7 +46,7 @@ from .exceptions import InvalidInputError, IpfitError
 
 __all__ = ["atomic_path", "write_text_atomic", "write_bytes_atomic", "reserve", "publish", "publish_set",
            "discard_temporaries", "written_paths", "remove_temporary", "aimed_at", "reaimed", "settle",
-           "special_kind", "refuse_special", "LOCK_WAIT"]
+           "special_kind", "refuse_special", "unfinished", "LOCK_WAIT"]
 
 #: Bytes written by :func:`reserve` to prove the folder takes a file (space, permissions).
 PROBE_BYTES = 4096
@@ -240,6 +240,13 @@ def _release(ident: tuple | None) -> None:
         with contextlib.suppress(OSError):
             path.unlink()
         os.close(fd)
+
+
+def unfinished(path: str | os.PathLike) -> bool:
+    """Whether a writer of ``path``'s output set was killed while renaming it into place (its
+    journal is still there): the set may be half old, half new until :func:`settle`."""
+    target = Path(path)
+    return _journal(_folder_of(target), _key(target)).exists()
 
 
 def settle(path: str | os.PathLike) -> None:

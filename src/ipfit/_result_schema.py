@@ -11,6 +11,7 @@ them; keys the table does not know are kept and not checked.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import numbers
@@ -432,7 +433,15 @@ def validate_result(data: Any, source: str = "result") -> dict:
 
 def read_result_json(path: str | os.PathLike) -> dict:
     """The JSON object of a result file (not yet validated), or a :class:`~ipfit.ReadError`."""
+    from . import _atomic
+
     path = Path(path)
+    kind = _atomic.special_kind(path)
+    if kind is not None:  # reading a FIFO would wait forever for a writer
+        raise ReadError(f"{path}: is a {kind}, not a result file. Pass the .json written by ipfit fit.")
+    if _atomic.unfinished(path):  # a fit killed while publishing: its set is completed first
+        with contextlib.suppress(OSError, InvalidInputError):
+            _atomic.settle(path)
     try:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
