@@ -134,7 +134,18 @@ def local_cluster(workers: int = 2) -> Iterator[Any]:
 
 
 def connect_timeout() -> float:
-    return float(os.environ.get("IPFIT_BATCH_CONNECT_TIMEOUT") or CONNECT_TIMEOUT)
+    """:data:`CONNECT_TIMEOUT`, or ``IPFIT_BATCH_CONNECT_TIMEOUT`` seconds when set."""
+    text = os.environ.get("IPFIT_BATCH_CONNECT_TIMEOUT")
+    if not text:
+        return CONNECT_TIMEOUT
+    try:
+        value = float(text)
+        if not 0 < value < float("inf"):
+            raise ValueError
+    except ValueError:
+        raise InvalidInputError(f"IPFIT_BATCH_CONNECT_TIMEOUT: expected a number of seconds > 0, got {text!r}. "
+                                "Fix or unset that environment variable.") from None
+    return value
 
 
 async def _identity(address: str, timeout: float) -> Any:
