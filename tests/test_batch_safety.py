@@ -268,6 +268,7 @@ def test_a_scheduler_that_never_answers_is_one_line_within_the_timeout(tmp_path,
     finally:
         server.close()
     assert time.monotonic() - start < 8 and accepted  # it connected, and gave up
+    assert not (tmp_path / "out").exists()
     assert f"cannot connect to {address} (no answer within 1 s)" in _one_error_line(capsys.readouterr().err)
 
 
@@ -280,3 +281,10 @@ def test_limits_are_checked_before_the_work(tmp_path, capsys, args):
     assert time.monotonic() - start < 10 and not (tmp_path / "out").exists()
     assert ("--workers: expected at most" in err) if "--workers" in args else (f"N <= {MAX_GENERATED:,}" in err)
     assert 1 <= max_workers() <= 4 * (os.cpu_count() or 1)
+
+
+@pytest.mark.parametrize("value", ["abc", "0", "inf"])
+def test_a_bad_connect_timeout_setting_is_one_line(tmp_path, capsys, monkeypatch, value):
+    monkeypatch.setenv("IPFIT_BATCH_CONNECT_TIMEOUT", value)
+    assert main(["batch", "generated:1", "-o", str(tmp_path / "out"), "--scheduler", "tcp://127.0.0.1:9"]) == 2
+    assert "IPFIT_BATCH_CONNECT_TIMEOUT: expected a number of seconds > 0" in _one_error_line(capsys.readouterr().err)

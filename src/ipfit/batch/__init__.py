@@ -195,7 +195,7 @@ def fit_many(inputs, *, client=None, workers: int | None = None, scheduler: str 
         (:func:`ipfit.datasets.collection`) or a ``{name: (points, normals)}`` mapping.
     client : a ``distributed.Client`` to use (a notebook's own); else ``scheduler`` (an
         address) is connected to, else an embedded LocalCluster of ``workers`` processes
-        (default 2) runs the batch and is stopped at the end.
+        (default 2; at most :func:`max_workers`) runs the batch and is stopped at the end.
     output : a folder for ``NAME.json`` per shape and ``summary.csv``; shapes whose valid
         result there has the same settings are skipped (resume). Files there that ipfit
         did not write are never replaced (see the module's notes).
@@ -229,7 +229,7 @@ def fit_many(inputs, *, client=None, workers: int | None = None, scheduler: str 
     """
     require_distributed()
     if client is None and scheduler is None:
-        workers = check_workers(2 if workers is None else workers)
+        workers = min(2, max_workers()) if workers is None else check_workers(workers)
     tasks = expand_inputs(inputs)
     settings = FitSettings(method, options, min_degree, max_degree, epsilon, delta, rule,
                            check_int(seed, "seed", minimum=0))
@@ -250,11 +250,11 @@ def fit_many(inputs, *, client=None, workers: int | None = None, scheduler: str 
             rows[task.name], results[task.name] = _row_of(task, stored, "skipped"), stored
         else:
             todo.append(task)
-    if outputs is not None:
-        outputs.claim()
     # The summary is written before the cluster stops: stopping it may take seconds, and a
     # second Ctrl-C then must not lose the summary of the first (it is held until the end).
     with HeldSignals() as held, _client_for(client, workers, scheduler) if todo else contextlib.nullcontext() as active:
+        if outputs is not None:  # once the cluster runs: a scheduler that cannot be reached writes nothing
+            outputs.claim()
         try:
             stopped_by = _run(active, todo, settings, folder, rows, results, progress, len(tasks), start) \
                 if todo else None

@@ -54,7 +54,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("-o", "--output", required=True, metavar="OUTDIR", help="folder for the results")
     where = parser.add_mutually_exclusive_group()
     where.add_argument("--workers", type=positive_int, default=None, metavar="N",
-                       help="worker processes of the embedded cluster (default 2)")
+                       help="worker processes of the embedded cluster (default 2; at most 4 per core "
+                       "and one per 512 MiB of available memory)")
     where.add_argument("--scheduler", metavar="ADDRESS", help="use the Dask scheduler at ADDRESS instead")
     add_fit_options(parser)
     parser.add_argument("--html", action="store_true",
