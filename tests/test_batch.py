@@ -95,10 +95,10 @@ def test_twenty_shapes_on_two_worker_processes_equal_sequential_fits(client):
 def test_resume_skips_shapes_fitted_with_the_same_settings(client, tmp_path):
     shapes = collection(4, seed=1)
     first = fit_many(shapes[:2], client=client, output=tmp_path, method="3l", max_degree=4)
-    stamps = {p.name: p.stat().st_mtime_ns for p in tmp_path.glob("*.json")}
+    stamps = {p.name: p.stat().st_mtime_ns for p in tmp_path.glob("[!.]*.json")}
     again = fit_many(shapes, client=client, output=tmp_path, method="3l", max_degree=4)
     assert [r["status"] for r in again.rows] == ["skipped", "skipped", "ok", "ok"]
-    assert {p.name: p.stat().st_mtime_ns for p in tmp_path.glob("*.json") if p.name in stamps} == stamps
+    assert {p.name: p.stat().st_mtime_ns for p in tmp_path.glob("[!.]*.json") if p.name in stamps} == stamps
     assert again.results[shapes[0].name]["coefficients"] == first.results[shapes[0].name]["coefficients"]
     assert again.rows[0]["selected_degree"] == first.rows[0]["selected_degree"]
     changed = fit_many(shapes, client=client, output=tmp_path, method="3l", max_degree=4, epsilon=0.02)
@@ -195,7 +195,7 @@ def test_ctrl_c_cancels_pending_shapes_keeps_finished_ones_and_writes_the_summar
     proc = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             start_new_session=True)
     deadline = time.monotonic() + 240
-    while not list(out.glob("*.json")) and time.monotonic() < deadline and proc.poll() is None:
+    while not list(out.glob("[!.]*.json")) and time.monotonic() < deadline and proc.poll() is None:
         time.sleep(0.2)
     assert proc.poll() is None, proc.communicate()
     os.killpg(proc.pid, signal.SIGINT)  # as a terminal's Ctrl-C: the whole process group
@@ -205,7 +205,7 @@ def test_ctrl_c_cancels_pending_shapes_keeps_finished_ones_and_writes_the_summar
         rows = list(csv.DictReader(fh))
     statuses = [r["status"] for r in rows]
     assert len(rows) == 40 and "cancelled" in statuses and "ok" in statuses
-    finished = {p.stem for p in out.glob("*.json")}
+    finished = {p.stem for p in out.glob("[!.]*.json")}
     assert finished == {r["name"] for r in rows if r["status"] == "ok"}
     for name in finished:
         load_result(out / f"{name}.json")  # complete, valid files only

@@ -11,55 +11,157 @@ derived from the batch seed and the shape's *name* (not from its place in the qu
 worker that runs it), so ``fit_adaptive(points, normals, rng=shape_rng(seed, name), ...)``
 alone gives the same result, bit for bit, with the same thread counts.
 
-Resume: with an ``output`` folder each result is written to ``OUTPUT/NAME.json`` with
-``"batch": {"settings_hash": ..., "name": ..., "seed": ...}``; a shape whose stored hash
-equals the current settings' hash is skipped (status ``skipped``, its row read back).
+Names: each shape has a unique name, stable for the same inputs in any order
+(:func:`unique_names`: the file's stem; on a clash, or for ``summary`` and ``index``, the
+file name with dashes, ``a.ply`` -> ``a-ply``, then a hash of the source). A caller's name
+(a mapping key) must be a plain file name: no ``/`` or ``\\``, not empty, no leading dot.
+
+Outputs: nothing is ever written outside ``output``, and no file there that ipfit did not
+write is replaced. The batch records what it writes in ``OUTPUT/.ipfit-batch.json``
+(:data:`MANIFEST`); before any work it refuses, in one line, to replace a file that is not
+listed there (nor an ipfit result, for ``NAME.json``), or an input.
+
+Resume: each result is written to ``OUTPUT/NAME.json`` with
+``"batch": {"settings_hash": ..., "name": ..., "seed": ...}``; a shape whose stored result
+is valid (:func:`ipfit.results.validate_result`), records the same file (or source) and
+name, and has the current settings' hash is skipped (status ``skipped``, its row read
+back); a broken one is fitted again and replaced.
+
+Limits, checked before the work: ``generated:N`` up to :data:`MAX_GENERATED` shapes; an
+embedded cluster up to :func:`max_workers` processes (4 per core, 512 MiB of available
+memory each); a ``scheduler`` must answer within :data:`CONNECT_TIMEOUT` seconds.
 
 Failures stay with their shape: an error while reading or fitting it, or the death of the
 worker process running it, makes its row ``failed`` with a one-line message; the rest go
 on. (On an existing cluster Dask retries a shape whose worker died on other workers, up to
 the scheduler's ``distributed.scheduler.allowed-failures``, 3 by default; the embedded
 cluster sets it to 0.) KeyboardInterrupt cancels the pending shapes (status ``cancelled``), keeps every
-finished result and returns (``BatchResult.interrupted``).
+finished result and returns (``BatchResult.interrupted``). The embedded workers ignore
+SIGINT (the batch process stops them), and a signal arriving while the cluster stops is
+held until it has stopped.
 """
 
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import json
 import os
+import signal
 import time
 import uuid
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Iterable
 
 from .. import _atomic
+from .._result_schema import FORMAT_NAME, validate_result
 from .._validation import check_int
 from ..exceptions import InvalidInputError
 from ..options import DEFAULT_DELTA, DEFAULT_EPSILON, DEFAULT_METHOD, DEFAULT_RULE, SearchOptions
-from ._cluster import THREAD_ENV, _client_for, local_cluster
-from ._shapes import (COLUMNS, GENERATED_PREFIX, BatchResult, FitSettings, _fit_task, _one_line, _row, _row_of,
-                      expand_inputs, shape_rng)
+from ._cluster import (CONNECT_TIMEOUT, THREAD_ENV, HeldSignals, _client_for, check_workers, local_cluster,
+                       max_workers, require_distributed)
+from ._shapes import (COLUMNS, GENERATED_PREFIX, MAX_GENERATED, RESERVED_NAMES, BatchResult, FitSettings, _fit_task,
+                      _one_line, _row, _row_of, expand_inputs, shape_rng, unique_names)
 
-__all__ = ["fit_many", "BatchResult", "FitSettings", "shape_rng", "local_cluster", "expand_inputs", "COLUMNS",
-           "THREAD_ENV", "GENERATED_PREFIX", "write_summary"]
+__all__ = ["fit_many", "BatchResult", "FitSettings", "shape_rng", "local_cluster", "expand_inputs", "unique_names",
+           "COLUMNS", "THREAD_ENV", "GENERATED_PREFIX", "MAX_GENERATED", "RESERVED_NAMES", "MANIFEST",
+           "CONNECT_TIMEOUT", "max_workers", "write_summary"]
 
 
 # -- outputs ---------------------------------------------------------------------------------------
-def _stored(path: Path) -> dict | None:
-    """The ipfit result at ``path`` (None when absent); refuses to replace a file ipfit did not write."""
-    from .._result_schema import FORMAT_NAME
+#: The batch's record in OUTPUT of the files it wrote (or was about to): only those it replaces.
+MANIFEST = ".ipfit-batch.json"
+_MANIFEST_FORMAT = "ipfit-batch"
 
-    if not path.exists():
-        return None
+
+def _refuse(path: Path, why: str = "ipfit did not write it") -> InvalidInputError:
+    return InvalidInputError(f"--output: {path} exists and {why}; the batch would replace it. "
+                             "Move it or choose another output folder.")
+
+
+def _json_or_none(path: Path):
+    """The JSON in ``path``, or None when it is unreadable, not JSON, nested too deeply or too big a number."""
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        data = None
-    if not isinstance(data, dict) or data.get("format") != FORMAT_NAME or path.is_dir():
-        raise InvalidInputError(f"--output: {path} exists and is not an ipfit result; the batch would replace it. "
-                                "Move it or choose another output folder.")
-    return data
+        return json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError, RecursionError):
+        return None
+
+
+def _manifest(folder: Path) -> set[str]:
+    """The file names :data:`MANIFEST` lists (none without one); a foreign file there is refused."""
+    path = folder / MANIFEST
+    if not (path.exists() or path.is_symlink()):
+        return set()
+    data = _json_or_none(path) if path.is_file() else None
+    files = data.get("files") if isinstance(data, dict) and data.get("format") == _MANIFEST_FORMAT else None
+    if not isinstance(files, list) or not all(isinstance(f, str) for f in files):
+        raise _refuse(path, "is not ipfit's record of a batch")
+    return set(files)
+
+
+def _has_pyarrow() -> bool:
+    import importlib.util
+
+    return importlib.util.find_spec("pyarrow") is not None
+
+
+class _Outputs:
+    """OUTPUT's files, checked before the work: a file that ipfit did not write or that is an input
+    is refused; the others are claimed in :data:`MANIFEST`."""
+
+    def __init__(self, folder: Path, tasks, also_writes=()) -> None:
+        self.folder, self.own = folder, _manifest(folder) if folder.is_dir() else set()
+        self._inputs = set()
+        for task in tasks:
+            with contextlib.suppress(OSError):
+                if task.path:
+                    self._inputs.add(_file_id(Path(task.path)))
+        names = ["summary.csv", *(["summary.parquet"] if _has_pyarrow() else [])]
+        for pattern in also_writes:
+            names += sorted({pattern.format(name=t.name) for t in tasks}) if "{name}" in pattern else [pattern]
+        for name in names:
+            self._check(folder / name, name in self.own)
+        self.claimed = set(names) | {f"{t.name}.json" for t in tasks}
+
+    def _check(self, path: Path, own: bool) -> None:
+        if not (path.exists() or path.is_symlink()):
+            return
+        with contextlib.suppress(OSError):
+            if _file_id(path) in self._inputs:
+                raise _refuse(path, "is an input file")
+        if not own or not path.is_file():
+            raise _refuse(path)
+
+    def finished(self, task, settings: FitSettings) -> dict | None:
+        """The valid result of ``task`` with these settings in OUTPUT, else None (fit it).
+
+        A result of ipfit's (listed, or with ``"format": "ipfit"``) that is broken or has other
+        settings is fitted again and replaced; any other file is refused.
+        """
+        path = self.folder / f"{task.name}.json"
+        if not (path.exists() or path.is_symlink()):
+            return None
+        data = _json_or_none(path) if path.is_file() else None
+        self._check(path, path.name in self.own or (isinstance(data, dict) and data.get("format") == FORMAT_NAME))
+        try:
+            validate_result(data, str(path))
+        except (InvalidInputError, RecursionError, ValueError, TypeError, KeyError):
+            return None
+        recorded, batch = data.get("input") or {}, data.get("batch") or {}
+        same = (batch.get("settings_hash") == settings.hash and batch.get("name") == task.name
+                and recorded.get("path" if task.path else "source") == task.identity)
+        return data if same else None
+
+    def claim(self) -> None:
+        """Record the files this batch may write, before it writes any."""
+        self.folder.mkdir(parents=True, exist_ok=True)
+        record = {"format": _MANIFEST_FORMAT, "version": 1, "files": sorted(self.own | self.claimed)}
+        _atomic.write_text_atomic(self.folder / MANIFEST, json.dumps(record, indent=0) + "\n")
+
+
+def _file_id(path: Path) -> tuple[int, int]:
+    stat = path.stat()
+    return stat.st_dev, stat.st_ino
 
 
 def write_summary(folder: Path, batch: BatchResult) -> list[Path]:
@@ -84,7 +186,7 @@ def fit_many(inputs, *, client=None, workers: int | None = None, scheduler: str 
              output: str | os.PathLike | None = None, method=DEFAULT_METHOD, options: SearchOptions | None = None,
              min_degree: int = 2, max_degree: int | None = None, epsilon: float = DEFAULT_EPSILON,
              delta: float = DEFAULT_DELTA, rule: str = DEFAULT_RULE, seed: int = 0,
-             progress: Callable[[dict], None] | None = None) -> BatchResult:
+             progress: Callable[[dict], None] | None = None, also_writes: Iterable[str] = ()) -> BatchResult:
     """Fit every shape of ``inputs`` with :func:`~ipfit.fit_adaptive` on a Dask cluster.
 
     Parameters
@@ -93,13 +195,16 @@ def fit_many(inputs, *, client=None, workers: int | None = None, scheduler: str 
         (:func:`ipfit.datasets.collection`) or a ``{name: (points, normals)}`` mapping.
     client : a ``distributed.Client`` to use (a notebook's own); else ``scheduler`` (an
         address) is connected to, else an embedded LocalCluster of ``workers`` processes
-        (default 2) runs the batch and is stopped at the end.
-    output : a folder for ``NAME.json`` per shape and ``summary.csv``; shapes whose result
-        there has the same settings are skipped (resume).
+        (default 2; at most :func:`max_workers`) runs the batch and is stopped at the end.
+    output : a folder for ``NAME.json`` per shape and ``summary.csv``; shapes whose valid
+        result there has the same settings are skipped (resume). Files there that ipfit
+        did not write are never replaced (see the module's notes).
     method, options, min_degree, max_degree, epsilon, delta, rule : as :func:`~ipfit.fit_adaptive`.
     seed : the batch seed; shape ``name`` uses :func:`shape_rng` ``(seed, name)``.
     progress : called after each shape with ``{"event": "shape", "name", "status", "done",
         "failed", "skipped", "running", "total", "elapsed", "eta"}`` (``eta`` in seconds or None).
+    also_writes : more file names the caller will write into ``output`` (``"{name}.html"``
+        for each shape, ``"index.html"``), checked and recorded with the batch's own.
 
     Returns
     -------
@@ -113,34 +218,54 @@ def fit_many(inputs, *, client=None, workers: int | None = None, scheduler: str 
     [('star-0000', 'ok', 2), ('blob-0001', 'ok', 2)]
 
     With a notebook's own cluster: ``fit_many(inputs, client=Client("tcp://host:8786"))``.
+
+    Raises
+    ------
+    InvalidInputError
+        Bad inputs, names, settings or limits, an output file ipfit did not write, an
+        unreachable scheduler: one line, before any shape is fitted.
+    IpfitError
+        ``dask.distributed`` is not installed (``pip install 'ipfit[dask]'``).
     """
+    require_distributed()
+    if client is None and scheduler is None:
+        workers = min(2, max_workers()) if workers is None else check_workers(workers)
     tasks = expand_inputs(inputs)
     settings = FitSettings(method, options, min_degree, max_degree, epsilon, delta, rule,
                            check_int(seed, "seed", minimum=0))
     _check_settings(settings)
     folder = None if output is None else Path(output)
+    outputs = None
     if folder is not None:
         if folder.exists() and not folder.is_dir():
             raise InvalidInputError(f"--output: {folder} is a file; the batch writes a folder. Choose a folder.")
-        folder.mkdir(parents=True, exist_ok=True)
+        outputs = _Outputs(folder, tasks, also_writes)
     start = time.perf_counter()
     rows: dict[str, dict] = {}
     results: dict[str, dict] = {}
     todo = []
     for task in tasks:
-        stored = None if folder is None else _stored(folder / f"{task.name}.json")
-        if stored is not None and (stored.get("batch") or {}).get("settings_hash") == settings.hash \
-                and (stored.get("input") or {}).get("source") == task.source:
+        stored = None if outputs is None else outputs.finished(task, settings)
+        if stored is not None:
             rows[task.name], results[task.name] = _row_of(task, stored, "skipped"), stored
         else:
             todo.append(task)
     # The summary is written before the cluster stops: stopping it may take seconds, and a
-    # second Ctrl-C then must not lose the summary of the first.
-    with _client_for(client, workers, scheduler) if todo else contextlib.nullcontext() as active:
-        interrupted = bool(todo) and _run(active, todo, settings, folder, rows, results, progress, len(tasks), start)
-        batch = BatchResult(tuple(rows[t.name] for t in tasks), results, interrupted, time.perf_counter() - start)
+    # second Ctrl-C then must not lose the summary of the first (it is held until the end).
+    with HeldSignals() as held, _client_for(client, workers, scheduler) if todo else contextlib.nullcontext() as active:
+        if outputs is not None:  # once the cluster runs: a scheduler that cannot be reached writes nothing
+            outputs.claim()
+        try:
+            stopped_by = _run(active, todo, settings, folder, rows, results, progress, len(tasks), start) \
+                if todo else None
+        finally:
+            held.start()
+        batch = BatchResult(tuple(rows[t.name] for t in tasks), results, stopped_by is not None,
+                            time.perf_counter() - start, stopped_by)
         if folder is not None:
             write_summary(folder, batch)
+    if held.signals and not batch.interrupted:  # Ctrl-C while the cluster stopped: all was done, but say so
+        batch = dataclasses.replace(batch, interrupted=True, signal=held.signals[0])
     return batch
 
 
@@ -152,7 +277,8 @@ def _check_settings(settings: FitSettings) -> None:
                    settings.min_degree, settings.max_degree)
 
 
-def _run(active, todo, settings, folder, rows, results, progress, total, start) -> bool:
+def _run(active, todo, settings, folder, rows, results, progress, total, start) -> int | None:
+    """Fit ``todo``; the signal that interrupted it (rows ``cancelled``), or None."""
     from distributed import as_completed
 
     token = uuid.uuid4().hex[:8]
@@ -181,14 +307,14 @@ def _run(active, todo, settings, folder, rows, results, progress, total, start) 
             counts["done" if row["status"] == "ok" else "failed"] += 1
             if progress is not None:
                 progress(_event(row, counts, len(todo), total, slots, fit_started, start))
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:  # the command line's SIGTERM is one too (with its signum)
         pending = [f for f, t in futures.items() if t.name not in rows]
         with contextlib.suppress(Exception):
             active.cancel(pending)
         for task in todo:
             rows.setdefault(task.name, _row(task, status="cancelled"))
-        return True
-    return False
+        return getattr(exc, "signum", signal.SIGINT)
+    return None
 
 
 def _event(row, counts, n_todo, total, slots, fit_started, start) -> dict:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
 import time
 from pathlib import Path
@@ -25,11 +26,25 @@ OUTDIR receives NAME.json per shape (the result JSON of `ipfit fit`) and summary
 summary.parquet with pyarrow): one row per shape with its points, selected degree, measures,
 F-score, spurious components, seconds, status (ok, skipped, failed, cancelled) and error.
 
+NAME is the file's stem (a.ply -> a), the dataset's or the generated shape's name. Where two
+shapes share a name (ignoring case), or for the reserved names summary and index, a file's
+NAME is its file name with dashes (a.ply -> a-ply, a.xyz -> a-xyz), and a name that still
+clashes gets 6 hex digits of a hash of its path (a-ply-3f2a9c): names depend on the set of
+inputs, never on their order. A file given twice (a folder and a glob) is fitted once.
+
 Shape NAME is fitted with a random generator made from --seed and NAME, so it gets the same
 result alone (ipfit.batch.shape_rng) or in any batch, on any worker. A shape whose result in
-OUTDIR has the same settings is skipped: re-running after a crash or Ctrl-C finishes the rest.
-A shape that cannot be read or fitted, or whose worker dies, is a failed row; the rest go on.
-Ctrl-C cancels the pending shapes, keeps the finished results and writes the summary.
+OUTDIR is valid, of the same file and settings is skipped: re-running after a crash or Ctrl-C
+finishes the rest (a damaged result is fitted again). A shape that cannot be read or fitted,
+or whose worker dies, is a failed row; the rest go on. Ctrl-C cancels the pending shapes,
+keeps the finished results, writes the summary, stops the workers and exits with 130.
+
+OUTDIR/.ipfit-batch.json lists the files the batch writes there; before any work, the batch
+refuses to replace a file that is not listed (for NAME.json: nor an ipfit result) or that
+is an input. Limits, checked first: generated:N up to 10,000 shapes; --workers up to 4 per
+core and one per 512 MiB of available memory; --scheduler must answer within 10 s
+(IPFIT_BATCH_CONNECT_TIMEOUT). A FIFO or device is refused (skipped in folders and globs).
+Needs dask.distributed: pip install 'ipfit[dask]'.
 """
 
 
@@ -39,7 +54,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("-o", "--output", required=True, metavar="OUTDIR", help="folder for the results")
     where = parser.add_mutually_exclusive_group()
     where.add_argument("--workers", type=positive_int, default=None, metavar="N",
-                       help="worker processes of the embedded cluster (default 2)")
+                       help="worker processes of the embedded cluster (default 2; at most 4 per core "
+                       "and one per 512 MiB of available memory)")
     where.add_argument("--scheduler", metavar="ADDRESS", help="use the Dask scheduler at ADDRESS instead")
     add_fit_options(parser)
     parser.add_argument("--html", action="store_true",
@@ -85,6 +101,10 @@ class BatchProgress:
             self._bar = None
 
 
+#: What --html adds to OUTDIR (checked and recorded with the batch's own outputs).
+HTML_FILES = ("{name}.html", "{name}.png", "index.html")
+
+
 def write_viewers(folder: Path, batch) -> Path:
     """NAME.html and a NAME.png thumbnail per fitted shape, and index.html linking them."""
     from .._atomic import write_text_atomic
@@ -127,7 +147,7 @@ def run(args: argparse.Namespace) -> int:
             batch = fit_many(args.inputs, workers=args.workers, scheduler=args.scheduler, output=args.output,
                              method=method, options=options, rule=rule, epsilon=args.epsilon, delta=args.delta,
                              min_degree=degree or 2, max_degree=degree or args.max_degree, seed=args.seed,
-                             progress=shown)
+                             progress=shown, also_writes=HTML_FILES if args.html else ())
     finally:
         shown.close()
     counts = batch.counts()
@@ -140,5 +160,5 @@ def run(args: argparse.Namespace) -> int:
     if batch.interrupted:
         print(f"ipfit batch: interrupted; kept {counts.get('ok', 0)} finished results in {args.output}, "
               "summary written; run the same command again to finish the rest", file=sys.stderr)
-        return 130
+        return 128 + (batch.signal or signal.SIGINT)
     return 0  # failed shapes are rows of the summary, not a failure of the command
