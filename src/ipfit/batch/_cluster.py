@@ -18,8 +18,9 @@ import threading
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any, Iterator
 
+from .._optional import require
 from .._validation import check_int
-from ..exceptions import InvalidInputError, IpfitError
+from ..exceptions import InvalidInputError
 from ._shapes import _one_line
 
 #: Set in every embedded worker: one BLAS / OpenMP / numba thread per worker process.
@@ -35,12 +36,8 @@ WORKER_MEMORY = 512 * 2**20
 
 def require_distributed() -> None:
     """Refuse in one line, before any work, when ``dask.distributed`` is not installed."""
-    try:
-        import dask  # noqa: F401
-        import distributed  # noqa: F401
-    except ImportError:
-        raise IpfitError("dask.distributed is not installed; the batch runs on it. "
-                         "Install it: pip install 'ipfit[dask]'.") from None
+    for module in ("dask", "distributed"):
+        require(module, "the batch (it runs on dask.distributed)")
 
 
 def max_workers() -> int:
