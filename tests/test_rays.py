@@ -123,3 +123,14 @@ def test_render_draws_a_sphere_disc(tmp_path):
     assert 0.02 < covered.mean() < 0.6
     with pytest.raises(InvalidInputError, match="3D surface"):
         render(circle().polynomial, [[-2, 2]] * 3)
+
+
+def test_render_refuses_a_box_beyond_float64s_reach_naming_the_box():
+    # the camera sits two box radii away: beyond the coordinate limit its rays start at inf
+    from ipfit.datasets.synthetic import sphere
+    from ipfit.results import MAX_COORDINATE
+
+    with pytest.raises(InvalidInputError, match=r"^bounds: expected a box within ±1e\+150") as info:
+        render(sphere().polynomial, [[-1e300, 1e300]] * 3, size=8)
+    assert "origins" not in str(info.value)
+    assert render(sphere().polynomial, [[-MAX_COORDINATE, MAX_COORDINATE]] * 3, size=8).shape == (8, 8, 3)

@@ -28,6 +28,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from . import basis
 from ._numeric import unit_rows_mask
+from ._result_schema import MAX_COORDINATE
 from ._validation import as_points, check_int, check_real, error
 
 __all__ = ["RayHits", "intersect_rays", "render", "camera_rays", "first_hits"]
@@ -322,6 +323,9 @@ def render(poly, bounds: ArrayLike, path: str | os.PathLike | None = None, *, si
     box = np.asarray(bounds, dtype=np.float64)
     if box.shape != (3, 2) or not np.all(np.isfinite(box)) or not np.all(box[:, 1] > box[:, 0]):
         raise error("bounds", "a (3, 2) box with min < max on every axis", f"{box.tolist()}")
+    if np.abs(box).max() > MAX_COORDINATE:  # the camera's rays would start beyond float64's range
+        raise error("bounds", f"a box within ±{MAX_COORDINATE:.0e}", f"{box.tolist()}",
+                    "Render the polynomial in smaller units.")
     width, height = (size, size) if np.isscalar(size) else size
     width, height = check_int(width, "size", minimum=1), check_int(height, "size", minimum=1)
     if up not in ("x", "y", "z"):

@@ -9,7 +9,8 @@ workers do not fight over the cores), and stops it at the end.
 Reproducibility: shape ``name`` is fitted with ``rng=shape_rng(seed, name)``, a generator
 derived from the batch seed and the shape's *name* (not from its place in the queue or the
 worker that runs it), so ``fit_adaptive(points, normals, rng=shape_rng(seed, name), ...)``
-alone gives the same result, bit for bit, with the same thread counts.
+alone gives the same result, bit for bit, on the same kind of machine with the same thread counts
+(another processor rounds matrix products differently, see the README).
 
 Names: each shape has a unique name, stable for the same inputs in any order
 (:func:`unique_names`: the file's stem; on a clash, or for ``summary`` and ``index``, the
