@@ -254,6 +254,9 @@ _BAD_PCD = {
                                         r"announces 4294967295 bytes from 40 compressed bytes, but 4 points"),
     "width_x_height_not_points": (_pcd_bytes(points=4, width=4, height=2), r"WIDTH 4 x HEIGHT 2 but POINTS 4"),
     "count_1e9": (_pcd_bytes(count="1 1 1000000000"), r"COUNT 1 1 1000000000;.*at most 100000 values"),
+    # 30,000 short lines announced as 100,000 values each: a 24 GB table from 180 kB of text
+    "wide_ascii_rows": (_pcd_bytes(points=30_000, count="1 1 99998", body=b"0 0 0\n" * 30_000),
+                        r"30000 points of 100000 values each, but 180000 bytes of text cannot hold"),
     "count_huge_binary": (_pcd_bytes(count="2147483648 1 1", data="binary"), r"COUNT 2147483648 1 1;"),
     "size_3": (_pcd_bytes(size="4 4 3"), r"field 'z' .* SIZE 3; PCD fields are F of 4 or 8 bytes"),
     "count_missing_a_field": (_pcd_bytes(count="1 1"), r"3 FIELDS, 3 SIZE, 3 TYPE and 2 COUNT values"),

@@ -214,6 +214,10 @@ def _check_pcd_structure(path: Path, raw: bytes) -> None:
         if points > lines:
             raise ReadError(f"{path}: the PCD header announces {shown} points but only {lines} lines of data "
                             "follow. The file is truncated or corrupted.")
+        values = points * sum(counts)
+        if 2 * values > available + 1:  # every value takes a digit and a separator: else the table
+            raise ReadError(f"{path}: the PCD header announces {shown} points of {sum(counts)} values each, but "
+                            f"{available} bytes of text cannot hold {values} values. The file is corrupted.")
     elif encoding == "binary":
         if needed > available:
             raise ReadError(f"{path}: the PCD header announces {shown} points of {record} bytes but the file holds "
