@@ -352,3 +352,14 @@ def test_a_rule_of_ones_own_is_asked_and_recorded(rng):
     assert mine.rule == "lowest-clean" and mine.to_dict()["adaptive"]["rule"] == "lowest-clean"
     assert mine.degrees[-1].reason.startswith("selected: degree")
     assert all(d.reason.startswith("rejected: ") for d in mine.degrees[:-1])
+
+
+def test_a_batch_records_its_rule_by_name():
+    # the batch's results and the hash that resumes it record the rule's name: a registered rule
+    # object is its name (the same hash as the name), a name is kept as given, a rule of one's own
+    # (workers could not look it up by name) is refused in one line
+    from ipfit.batch import _rule_name
+
+    assert [_rule_name(rule) for rule in (CAPTURE, "paper", "Geometric")] == ["capture", "paper", "Geometric"]
+    with pytest.raises(InvalidInputError, match="^rule: expected a rule's name or a rule of ipfit.rules.RULES"):
+        _rule_name(LowestClean())
