@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from types import SimpleNamespace
 
 import numpy as np
@@ -11,8 +12,10 @@ import trimesh
 import ipfit
 from ipfit import fit_adaptive
 from ipfit.datasets import load_dataset, synthetic
+from ipfit.exceptions import InvalidInputError
 from ipfit.quality import Quality
-from ipfit.rules import (GAIN, PATIENCE, TOLERANCE, capture_stop, gains, is_clean, select_degree_capture)
+from ipfit.rules import (CAPTURE, GAIN, GEOMETRIC, PAPER, PATIENCE, RULES, TOLERANCE, DegreeRule, capture_stop, gains,
+                         get_rule, is_clean, select_degree_capture)
 
 
 def _quality(f=0.9, recall=None, d2z=0.01, spurious=(), n_open=0, tau=0.05, n_components=1) -> Quality:
@@ -150,9 +153,9 @@ def test_automatic_degrees_keep_two_points_per_coefficient():
     # degree 8 has 45 coefficients (90 <= 100 points), degree 10 has 66
     from ipfit.adaptive import _top_degree
 
-    assert _top_degree(100, 2, 2, None, "capture") == 8
-    assert _top_degree(100, 2, 2, None, "paper") == 10
-    assert _top_degree(100, 2, 2, 12, "capture") == 12   # an explicit maximum is the user's
+    assert _top_degree(100, 2, 2, None, CAPTURE) == 8
+    assert _top_degree(100, 2, 2, None, PAPER) == 10
+    assert _top_degree(100, 2, 2, 12, CAPTURE) == 12   # an explicit maximum is the user's
     assert fit_adaptive(shape.points, shape.normals, method="3l").selected_degree == 2
 
 
@@ -192,30 +195,26 @@ def test_a_repair_never_buys_precision_with_the_data():
 
     original = entry(0.74, recall=0.93)
     shrunk = entry(0.75, recall=0.60)           # precise because it left the thin parts of the data
-    assert not _better(shrunk, original, "capture", original.quality.recall)
+    assert not _better(shrunk, original, CAPTURE, original.quality.recall)
     tighter = entry(0.80, recall=0.93 - RECALL_KEPT / 2)
-    assert _better(tighter, original, "capture", original.quality.recall)
+    assert _better(tighter, original, CAPTURE, original.quality.recall)
     loop = {"size": 1.0, "share": 0.1, "center": [0, 0], "distance": 1.0}
-    assert _better(entry(0.70, recall=0.93), entry(0.90, recall=0.93, spurious=[loop]), "capture", 0.93)
+    assert _better(entry(0.70, recall=0.93), entry(0.90, recall=0.93, spurious=[loop]), CAPTURE, 0.93)
 
 
 def test_a_degree_out_of_the_race_is_not_repaired():
     # even a precision of 1 could not bring an F-score within the tolerance of the best one so far
-    from ipfit.repair import is_done
-
-    low = SimpleNamespace(quality=_quality(0.80, recall=0.90), clean=True)
+    low = SimpleNamespace(quality=_quality(0.80, recall=0.90))
     low.quality = Quality(**{**low.quality.__dict__, "precision": 0.7})
-    assert is_done(low, "capture", best_f=0.99)        # 2·0.9/1.9 = 0.947 < 0.98
-    assert not is_done(low, "capture", best_f=0.90)    # it could still win: repair it
-    assert is_done(low, "geometric", best_f=0.90)      # the geometric rule repairs unclean degrees only
+    assert CAPTURE.is_done(low, best_f=0.99)        # 2·0.9/1.9 = 0.947 < 0.98
+    assert not CAPTURE.is_done(low, best_f=0.90)    # it could still win: repair it
+    assert GEOMETRIC.is_done(low, best_f=0.90)      # the geometric rule repairs unclean degrees only
 
 
 def test_a_repair_stops_at_the_first_weight_that_does_not_help():
     # (x² + y² − 1)(x² + y² − 0.04) on a unit circle's points: the small circle is spurious. The
     # repair tries the clean-up weights in turn, but goes on to a stronger weight only after one
     # that improved the fit.
-    import dataclasses
-
     from ipfit.adaptive import DegreeResult
     from ipfit.objective import measures
     from ipfit.options import RECOMMENDED
@@ -251,12 +250,116 @@ def test_a_repair_stops_at_the_first_weight_that_does_not_help():
 
     for first in (spurious, still):  # the first weight changes nothing, or nothing that counts
         refit, calls = scripted(first, cleaner, cleaner)
-        kept = repair(spurious, refit, options, circle.points, None, True, "capture")
+        kept = repair(spurious, refit, options, circle.points, None, True, CAPTURE)
         assert calls == [1.0] and kept.quality.n_spurious == 1 and len(kept.cleanup) == 1
     refit, calls = scripted(cleaner, spurious, spurious)  # the first weight cleans it: done
-    kept = repair(spurious, refit, options, circle.points, None, True, "capture")
+    kept = repair(spurious, refit, options, circle.points, None, True, CAPTURE)
     assert calls == [1.0] and kept.quality.n_spurious == 0
     better = dataclasses.replace(still, quality=dataclasses.replace(still.quality, f_score=0.99 * cleaner.quality.f_score))
     refit, calls = scripted(better, cleaner, spurious)  # an improvement, not yet clean: the next weight
-    kept = repair(spurious, refit, options, circle.points, None, True, "capture")
+    kept = repair(spurious, refit, options, circle.points, None, True, CAPTURE)
     assert calls == [1.0, 10.0] and kept.quality.n_spurious == 0
+
+
+# -- the rules as objects ------------------------------------------------------------------------
+def test_each_rule_judges_clean_by_its_own_definition():
+    # tau = 0.05: a speck is a spurious component shorter than tau / 2 within 2 tau of the data
+    speck = {"size": 0.024, "share": 0.001, "center": [3.0, 3.0], "distance": 0.09}
+    perfect = _quality()
+    with_speck = _quality(spurious=[speck])        # not closed, but no open piece near the data
+    open_near_data = _quality(n_open=1)
+    empty = dataclasses.replace(_quality(n_components=0), closed=False)       # as quality() reports it
+    # capture ignores specks and asks only the pieces near the data to close; geometric is strict
+    assert [CAPTURE.is_clean(q) for q in (perfect, with_speck, open_near_data, empty, None)] == \
+        [True, True, False, False, False]
+    assert [GEOMETRIC.is_clean(q) for q in (perfect, with_speck, open_near_data, empty, None)] == \
+        [True, False, False, False, False]
+    # the paper's rule measures nothing: its degrees (quality None) are never clean
+    assert not PAPER.measured and not PAPER.is_clean(None)
+    assert CAPTURE.measured and GEOMETRIC.measured
+    # one definition: the objects are the function, parametrised
+    for q in (perfect, with_speck, open_near_data, empty, None):
+        assert CAPTURE.is_clean(q) == is_clean(q) and GEOMETRIC.is_clean(q) == is_clean(q, ignore_specks=False)
+
+
+def test_the_registry_holds_the_three_rules_by_name():
+    assert list(RULES) == ["capture", "geometric", "paper"]
+    assert all(RULES[name].name == name and isinstance(RULES[name], DegreeRule) for name in RULES)
+    assert (RULES["capture"], RULES["geometric"], RULES["paper"]) == (CAPTURE, GEOMETRIC, PAPER)
+    assert get_rule("Paper") is PAPER and get_rule(CAPTURE) is CAPTURE   # names ignore case; objects pass
+    assert (CAPTURE.max_degree(2), CAPTURE.max_degree(3)) == (14, 8)
+    assert (GEOMETRIC.max_degree(2), PAPER.max_degree(2), PAPER.max_degree(3)) == (10, 10, 8)
+    # the command line offers exactly the registry's names
+    import argparse
+
+    from ipfit.cli.fit import add_fit_options
+
+    parser = argparse.ArgumentParser()
+    add_fit_options(parser)
+    assert next(a for a in parser._actions if a.dest == "rule").choices == list(RULES)
+
+
+def test_an_unknown_rule_is_refused_in_one_line_naming_the_valid_ones():
+    shape = synthetic.ellipse(50)
+    for bad in ("fastest", 3):
+        with pytest.raises(InvalidInputError) as caught:
+            fit_adaptive(shape.points, shape.normals, method="3l", rule=bad)
+        message = str(caught.value)
+        assert "\n" not in message and message.startswith("rule: expected one of 'capture', 'geometric', 'paper', got")
+
+
+def test_a_rule_object_is_the_same_as_its_name(rng):
+    t = np.sort(rng.uniform(0, 2 * np.pi, 400))
+    r = 1 + 0.3 * np.cos(3 * t)
+    pts = np.column_stack([r * np.cos(t), r * np.sin(t)])
+    for name in RULES:
+        by_name = fit_adaptive(pts, method="3l", max_degree=8, rule=name)
+        by_object = fit_adaptive(pts, method="3l", max_degree=8, rule=RULES[name])
+        assert by_object.rule == name and by_object.to_dict()["adaptive"]["rule"] == name
+        assert [d.reason for d in by_object.degrees] == [d.reason for d in by_name.degrees]
+        assert np.array_equal(by_object.x, by_name.x) and by_object.message == by_name.message
+
+
+class LowestClean(DegreeRule):
+    """A rule of one's own: stop at the first clean degree and take it (specks ignored)."""
+
+    name = "lowest-clean"
+    ignore_specks = True
+
+    def __init__(self):
+        self.asked = 0
+
+    def stop(self, results, epsilon):
+        self.asked += 1
+        return "clean" if self.is_clean(results[-1].quality) else None
+
+    def select(self, results, epsilon, reason):
+        clean = [i for i, r in enumerate(results) if self.is_clean(r.quality)]
+        return (clean[0] if clean else len(results) - 1), reason
+
+
+def test_a_rule_of_ones_own_is_asked_and_recorded(rng):
+    t = np.sort(rng.uniform(0, 2 * np.pi, 600))
+    r = 1 + 0.3 * np.cos(3 * t) + 0.1 * np.sin(5 * t)
+    pts = np.column_stack([r * np.cos(t), r * np.sin(t)])
+    capture = fit_adaptive(pts, method="3l", max_degree=10)
+    clean = [d.degree for d in capture.degrees if is_clean(d.quality)]
+    assert clean and capture.selected_degree > min(clean)   # the capture rule takes a higher degree here
+    rule = LowestClean()
+    mine = fit_adaptive(pts, method="3l", max_degree=10, rule=rule)
+    assert mine.selected_degree == min(clean) and mine.degrees[-1].degree == min(clean)  # stopped there
+    assert rule.asked == len(mine.degrees) and mine.reason == "clean" and mine.success
+    assert mine.rule == "lowest-clean" and mine.to_dict()["adaptive"]["rule"] == "lowest-clean"
+    assert mine.degrees[-1].reason.startswith("selected: degree")
+    assert all(d.reason.startswith("rejected: ") for d in mine.degrees[:-1])
+
+
+def test_a_batch_records_its_rule_by_name():
+    # the batch's results and the hash that resumes it record the rule's name: a registered rule
+    # object is its name (the same hash as the name), a name is kept as given, a rule of one's own
+    # (workers could not look it up by name) is refused in one line
+    from ipfit.batch import _rule_name
+
+    assert [_rule_name(rule) for rule in (CAPTURE, "paper", "Geometric")] == ["capture", "paper", "Geometric"]
+    with pytest.raises(InvalidInputError, match="^rule: expected a rule's name or a rule of ipfit.rules.RULES"):
+        _rule_name(LowestClean())

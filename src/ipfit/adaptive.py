@@ -1,8 +1,8 @@
 """Adaptive degree selection: the paper's Algorithm 1, and the rules built on it.
 
 For g = 2, 4, …, G, fit at degree g with a fixed-degree method and, with a geometric rule,
-measure the zero set's quality; a degree rule (:mod:`ipfit.rules`) says when to stop and which
-degree to take. Every degree tried is kept, so a user can inspect the whole path and take
+measure the zero set's quality; a degree rule (:class:`ipfit.rules.DegreeRule`) says whether to
+measure and repair, when to stop, which degree to take and why. This module is the loop alone. Every degree tried is kept, so a user can inspect the whole path and take
 another degree.
 """
 
@@ -29,21 +29,11 @@ from .options import (DEFAULT_DELTA, DEFAULT_EPSILON, DEFAULT_METHOD, DEFAULT_RU
 from .polynomial import ImplicitPolynomial
 from .quality import Quality, looks_like_contour, quality
 from .refine import _RENAMED as _RENAMED_SEARCH, refine
-from .repair import best_clean_f, clean, is_done, repair
-from .rules import RULES, capture_stop, explain, select, select_degree, select_degree_geometric, verdict
+from .repair import repair
+from .rules import RULES, DegreeRule, get_rule, select_degree, select_degree_geometric
 
 __all__ = ["fit_adaptive", "AdaptiveResult", "DegreeResult", "select_degree", "select_degree_geometric",
-           "fixed_degree_methods", "DEFAULT_MAX_DEGREE", "RULES"]
-
-
-#: Maximum degree tried by default, per dimension (the paper: degrees 2 to 10 are the norm).
-DEFAULT_MAX_DEGREE = {2: 10, 3: 8}
-#: ... and with the capture rule, which stops by itself once the shape is captured and so can
-#: afford the higher degrees that thin or detailed contours need (docs/degree-rule.md).
-CAPTURE_MAX_DEGREE = {2: 14, 3: 8}
-#: Automatic degrees (no max_degree given) keep at least this many points per coefficient:
-#: near interpolation, a fit follows the points and wiggles between them.
-POINTS_PER_COEFFICIENT = 2
+           "fixed_degree_methods", "RULES"]
 
 
 def fixed_degree_methods() -> tuple[str, ...]:
@@ -87,11 +77,6 @@ class DegreeResult(Result):
     def distance(self) -> float:
         return float(self.measures.distance)
 
-    @property
-    def clean(self) -> bool:
-        """The zero set has no spurious component and closes inside the box (False when unmeasured)."""
-        return self.quality is not None and self.quality.n_spurious == 0 and bool(self.quality.closed)
-
     def to_dict(self) -> dict:
         """The entry of ``degrees`` in the JSON result (contract keys, plus nit/nfev/quality)."""
         out = {"degree": self.degree, "dissimilarity": self.dissimilarity, "smoothness": self.smoothness,
@@ -123,7 +108,8 @@ class AdaptiveResult(Result):
     degrees : one :class:`DegreeResult` per degree tried, in order.
     reason : why the loop stopped or the degree was chosen: 'captured' or 'flattened' (capture
         rule), 'criterion' (Algorithm 1), 'geometric', 'max_degree', 'fixed' or 'interrupted'.
-    epsilon, delta, method, rule, seconds
+    rule : the degree rule's name.
+    epsilon, delta, method, seconds
     options : the search settings used by a refinement method (None for a linear fit).
     """
 
@@ -235,7 +221,8 @@ def _check_progress(progress):
 @renamed_keywords(**_RENAMED_SEARCH)
 def fit_adaptive(points: ArrayLike, normals: ArrayLike | None = None, *, method: str | FitFunction = DEFAULT_METHOD,
                  options: SearchOptions | None = None, max_degree: int | None = None, min_degree: int = 2,
-                 epsilon: float = DEFAULT_EPSILON, delta: float = DEFAULT_DELTA, rule: str = DEFAULT_RULE,
+                 epsilon: float = DEFAULT_EPSILON, delta: float = DEFAULT_DELTA,
+                 rule: str | DegreeRule = DEFAULT_RULE,
                  faces: ArrayLike | None = None, ordered_contour: bool | None = None, rng=None,
                  progress: Callable[[dict], None] | None = None) -> AdaptiveResult:
     """Find the degree the data needs (Algorithm 1) and fit at it.
@@ -257,8 +244,9 @@ def fit_adaptive(points: ArrayLike, normals: ArrayLike | None = None, *, method:
     min_degree : the first degree tried (default 2).
     epsilon : ε, the smallest smoothness gain that justifies a higher degree.
     delta : δ of the paper's distance.
-    rule : 'capture' (default), 'geometric' or 'paper' (Algorithm 1 exactly); see
-        :mod:`ipfit.rules`. 'capture' and 'geometric' measure the geometric quality of every
+    rule : 'capture' (default), 'geometric' or 'paper' (Algorithm 1 exactly), or a
+        :class:`~ipfit.rules.DegreeRule` object (one of :data:`ipfit.rules.RULES` or your own);
+        see :mod:`ipfit.rules`. 'capture' and 'geometric' measure the geometric quality of every
         degree (:func:`ipfit.quality.quality`: F-score, precision, recall, spurious components,
         closed) and try to clean a degree whose zero set is not clean before rejecting it
         (with 'capture', also a clean degree that bulges away from the data: precision below
@@ -307,7 +295,7 @@ def fit_adaptive(points: ArrayLike, normals: ArrayLike | None = None, *, method:
     top = _top_degree(len(pts), dim, min_degree, max_degree, rule)
     faces = None if faces is None else as_faces(faces, len(pts), dim)
     unit = estimate_normals(pts) if normals is None else as_normals(normals, pts)
-    measured = rule != "paper"
+    measured = rule.measured
     if measured and ordered_contour is None:
         ordered_contour = dim == 2 and looks_like_contour(pts)
     fitter = _Fitter(method, options if method in REFINE_METHODS else None, delta, generator, progress)
@@ -320,8 +308,8 @@ def fit_adaptive(points: ArrayLike, normals: ArrayLike | None = None, *, method:
             progress({"event": "degree_start", "degree": degree})
         try:
             entry = _fit_degree(fitter, pts, unit, degree, delta, measured, faces, ordered_contour)
-            best_f = best_clean_f(results, rule)
-            if measured and fitter.options is not None and not is_done(entry, rule, best_f):
+            best_f = rule.best_clean_f(results)
+            if measured and fitter.options is not None and not rule.is_done(entry, best_f):
                 def refit(options, start, keep_clear, degree=degree):
                     return _fit_degree(fitter, pts, unit, degree, delta, True, faces, ordered_contour,
                                        options=options, extra_starts=[start], method="polish",
@@ -337,34 +325,37 @@ def fit_adaptive(points: ArrayLike, normals: ArrayLike | None = None, *, method:
         results.append(entry)
         if progress is not None:
             progress({"event": "degree_done", **entry.to_dict()})
-        if rule == "capture":
-            stop = capture_stop(results, epsilon)
-            if stop is not None:
-                reason = stop
-                break
-        elif len(results) >= 2 and results[-1].smoothness - results[-2].smoothness <= epsilon:
-            if rule == "paper" or any(r.clean for r in results):
-                reason = "criterion"
-                break
-    index, reason = select(results, rule, epsilon, reason, fixed=len(degrees) == 1)
-    message = explain(results, index, reason, epsilon, rule)
-    results = [dataclasses.replace(r, reason=verdict(results, i, index, message, rule, epsilon))
+        stop = rule.stop(results, epsilon)
+        if stop is not None:
+            reason = stop
+            break
+    index, reason, message = _select(results, rule, epsilon, reason, fixed=len(degrees) == 1)
+    results = [dataclasses.replace(r, reason=rule.reason(results, i, index, message, epsilon))
                for i, r in enumerate(results)]
     chosen = results[index]
     name = method if isinstance(method, str) else getattr(method, "__name__", "custom")
-    success = reason != "interrupted" and (rule == "paper" or clean(chosen, rule)
-                                           or not any(clean(r, rule) for r in results))
+    success = reason != "interrupted" and rule.success(results, index)
     return AdaptiveResult(
         x=chosen.x, fun=chosen.fun, nit=len(results), nfev=sum(r.nfev for r in results), success=success,
         message=message, polynomial=chosen.polynomial,
         selected_degree=chosen.degree, degrees=tuple(results), reason=reason, epsilon=epsilon, delta=delta,
-        method=name, rule=rule, seconds=time.perf_counter() - start,
+        method=name, rule=rule.name, seconds=time.perf_counter() - start,
         options=options if method in REFINE_METHODS else None)
+
+
+def _select(results, rule: DegreeRule, epsilon: float, reason: str, fixed: bool) -> tuple[int, str, str]:
+    """``(index, reason, message)``: the rule's choice among ``results`` and its explanation; a
+    single degree asked for (``fixed``) leaves no choice to a rule."""
+    if fixed and reason != "interrupted":
+        return 0, "fixed", f"fixed degree {results[0].degree}"
+    index, reason = rule.select(results, epsilon, reason)
+    return index, reason, rule.explain(results, index, reason, epsilon)
 
 
 def check_settings(method, options, rule, epsilon, delta, min_degree, max_degree=None):
     """The data-independent arguments of :func:`fit_adaptive`, checked (the one place: batches
-    check them once before sending shapes to workers). Returns them normalised."""
+    check them once before sending shapes to workers). Returns them normalised (the rule as its
+    :class:`~ipfit.rules.DegreeRule` object)."""
     if not callable(method):
         method = check_choice(method, "method", fixed_degree_methods())
     if method in REFINE_METHODS:
@@ -376,7 +367,7 @@ def check_settings(method, options, rule, epsilon, delta, min_degree, max_degree
         name = method if isinstance(method, str) else "a callable"
         raise error("options", f"None for method {name!r}, which has no search", "SearchOptions",
                     "Drop the search options (or the far-field term weight) or pick a refinement method.")
-    rule = check_choice(rule, "rule", RULES)
+    rule = get_rule(rule)
     epsilon = check_real(epsilon, "epsilon")
     delta = check_nonnegative(delta, "delta")
     min_degree = check_int(min_degree, "min_degree", minimum=1)
@@ -385,18 +376,19 @@ def check_settings(method, options, rule, epsilon, delta, min_degree, max_degree
     return method, options, rule, epsilon, delta, min_degree
 
 
-def _top_degree(n_points: int, dim: int, min_degree: int, max_degree: int | None, rule: str = "paper") -> int:
+def _top_degree(n_points: int, dim: int, min_degree: int, max_degree: int | None, rule: DegreeRule) -> int:
     if max_degree is None:
-        top = (CAPTURE_MAX_DEGREE if rule == "capture" else DEFAULT_MAX_DEGREE)[dim]
+        top = rule.max_degree(dim)
     else:
         top = check_int(max_degree, "max_degree", minimum=min_degree)
         if top > basis.MAX_DEGREE[dim]:
             raise error("max_degree", f"at most {basis.MAX_DEGREE[dim]} in {dim}D (ipfit's limit)", str(top),
                         "Lower the maximum degree.")
     largest_possible = max((g for g in range(1, top + 1) if basis.n_coefficients(dim, g) <= n_points), default=0)
-    if rule == "capture" and max_degree is None:
+    if max_degree is None:
+        # An explicit maximum is the user's; automatic degrees keep the rule's points per coefficient.
         comfortable = max((g for g in range(1, top + 1)
-                           if POINTS_PER_COEFFICIENT * basis.n_coefficients(dim, g) <= n_points), default=0)
+                           if rule.points_per_coefficient * basis.n_coefficients(dim, g) <= n_points), default=0)
         largest_possible = min(largest_possible, max(comfortable, min_degree))
     if largest_possible < min_degree:
         check_enough_points(n_points, dim, min_degree)

@@ -1,10 +1,11 @@
 """Repairs of one degree's fit before a degree rule judges it.
 
-A degree whose zero set is not clean (spurious components, open sheets), or, for the capture
-rule, is clean but bulges away from the data (precision below :data:`PRECISION_TARGET`), gets
-its stray zero set sampled and held clear by the far-field term in a short L-BFGS polish from
-its fit (:func:`repair`). The adaptive loop (:mod:`ipfit.adaptive`) calls it; the rounds tried
-are recorded in ``DegreeResult.cleanup``.
+A degree the rule does not count as done (:meth:`ipfit.rules.DegreeRule.is_done`: a zero set
+that is not clean, with spurious components or open sheets, or, for the capture rule, a clean
+one that bulges away from the data) gets its stray zero set sampled and held clear by the
+far-field term in a short L-BFGS polish from its fit (:func:`repair`). The adaptive loop
+(:mod:`ipfit.adaptive`) calls it; the rounds tried are recorded in ``DegreeResult.cleanup``.
+What counts as clean or done is the rule's; this module only repairs.
 """
 
 from __future__ import annotations
@@ -16,55 +17,28 @@ import numpy as np
 
 from .options import SearchOptions
 from .quality import stray_samples
-from .rules import TOLERANCE, is_clean
 
 if TYPE_CHECKING:
     from .adaptive import DegreeResult
+    from .rules import DegreeRule
 
-__all__ = ["repair", "is_done", "clean", "best_clean_f", "CLEANUP_POLISH_ITERATIONS", "PRECISION_TARGET",
-           "REPAIR_RECALL", "RECALL_KEPT"]
+__all__ = ["repair", "CLEANUP_POLISH_ITERATIONS", "RECALL_KEPT"]
 
 #: L-BFGS iterations of a clean-up polish: the kept-clear samples act early (the bunny's degree-6
 #: blobs went in a 7 s polish), while a full 1000-iteration one took 26 s at degree 8.
 CLEANUP_POLISH_ITERATIONS = 200
-#: The capture rule also repairs a clean degree whose precision is below PRECISION_TARGET while its
-#: recall is at least REPAIR_RECALL: the zero set reaches the data but also bulges away from it.
-#: A degree that misses the data as well is too low, not defective.
-PRECISION_TARGET = 0.95
-REPAIR_RECALL = 0.9
 #: A repair is kept only if the recall drops by at most this much: it removes stray zero set,
 #: not the zero set on the data (a sparse, thin model's fit can shrink off its thin parts).
 RECALL_KEPT = 0.02
 
 
-def clean(entry: DegreeResult, rule: str) -> bool:
-    """Whether a degree counts as clean for ``rule`` (the capture rule ignores specks)."""
-    return is_clean(entry.quality) if rule == "capture" else entry.clean
-
-
-def best_clean_f(results, rule: str) -> float:
-    """The best F-score among the clean degrees of ``results`` (0 when none is clean)."""
-    return max((r.quality.f_score for r in results if clean(r, rule)), default=0.0)
-
-
-def is_done(entry: DegreeResult, rule: str, best_f: float = 0.0) -> bool:
-    """Nothing left to repair: clean and, for the capture rule, precise enough, too low a degree
-    (it misses data) or out of the race (even a precision of 1 would leave its F-score more than
-    the rule's tolerance below ``best_f``, the best clean degree so far)."""
-    q = entry.quality
-    if not clean(entry, rule):
+def _better(trial: DegreeResult, best: DegreeResult, rule: DegreeRule, recall: float) -> bool:
+    """Cleaner (for ``rule``) first, then a higher F-score; but a repair of a clean degree must not
+    buy precision with the data: it keeps the recall (within RECALL_KEPT)."""
+    trial_clean, best_clean = rule.is_clean(trial.quality), rule.is_clean(best.quality)
+    if best_clean and trial.quality.recall < recall - RECALL_KEPT:
         return False
-    if rule != "capture" or q.precision >= PRECISION_TARGET or q.recall < REPAIR_RECALL:
-        return True
-    return 2 * q.recall / (1 + q.recall) < best_f - TOLERANCE
-
-
-def _better(trial: DegreeResult, best: DegreeResult, rule: str, recall: float) -> bool:
-    """Cleaner first, then a higher F-score; but a repair of a clean degree must not buy precision
-    with the data: it keeps the recall (within RECALL_KEPT)."""
-    if clean(best, rule) and trial.quality.recall < recall - RECALL_KEPT:
-        return False
-    return (clean(trial, rule), trial.quality.f_score) > (clean(best, rule), best.quality.f_score)
+    return (trial_clean, trial.quality.f_score) > (best_clean, best.quality.f_score)
 
 
 def _closer(trial: DegreeResult, best: DegreeResult, recall: float) -> bool:
@@ -86,8 +60,9 @@ def _stray_distance(tau: float, pts, faces, ordered_contour) -> float:
 
 
 def repair(entry: DegreeResult, refit: Callable[..., DegreeResult], options: SearchOptions, pts, faces,
-           ordered_contour, rule: str, best_f: float = 0.0) -> DegreeResult:
-    """Try to make a degree clean (and, for the capture rule, precise) before the rule judges it.
+           ordered_contour, rule: DegreeRule, best_f: float = 0.0) -> DegreeResult:
+    """Try to make a degree done for ``rule`` (clean and, for the capture rule, precise) before
+    the rule judges it.
 
     Its zero set's stray parts (farther than τ from the data: spurious components, sheets,
     bulges and lobes attached to the shape) are sampled and held clear by the far-field term in
@@ -101,7 +76,7 @@ def repair(entry: DegreeResult, refit: Callable[..., DegreeResult], options: Sea
     """
     polish = min(CLEANUP_POLISH_ITERATIONS, options.for_method("polish", dim=pts.shape[1])["polish_iterations"])
     stray = _stray_distance(entry.quality.tau, pts, faces, ordered_contour)
-    target = "precision" if clean(entry, rule) else "spurious components"
+    target = "precision" if rule.is_clean(entry.quality) else "spurious components"
     best = current = entry
     places, attempts, nfev = [], [], entry.nfev
     for weight in options.cleanup_weights:
@@ -115,7 +90,7 @@ def repair(entry: DegreeResult, refit: Callable[..., DegreeResult], options: Sea
         trial = refit(options.replace(far_term_weight=weight, start_fits=(), polish_iterations=polish),
                       current.x, np.concatenate(places))
         nfev += trial.nfev
-        attempts.append({"target": target, "far_term_weight": weight, "clean": clean(trial, rule),
+        attempts.append({"target": target, "far_term_weight": weight, "clean": rule.is_clean(trial.quality),
                          "f_score": trial.quality.f_score, "precision": trial.quality.precision,
                          "n_spurious": trial.quality.n_spurious, "closed": bool(trial.quality.closed),
                          "seconds": trial.seconds})
@@ -125,7 +100,7 @@ def repair(entry: DegreeResult, refit: Callable[..., DegreeResult], options: Sea
             current = trial  # on the data but with new specks: the next round holds them clear too
             continue
         best = current = trial
-        if is_done(best, rule, best_f):
+        if rule.is_done(best, best_f):
             break
     if best is not entry:
         # The degree's fit is still the method's, repaired: keep its name ("cleanup" records it).

@@ -25,20 +25,36 @@ take the previous degree. ``"geometric"`` (the rule before ``"capture"``) is the
 restricted to degrees whose zero set is strictly clean (no spurious component, closed inside
 the box) when one exists. Every degree also gets a one-line reason (selected, rejected, not
 needed, superseded), stored in the result.
+
+Each rule is one object, a :class:`DegreeRule` (:data:`CAPTURE`, :data:`GEOMETRIC`,
+:data:`PAPER`), registered by name in :data:`RULES`; :func:`get_rule` turns a name (what the
+public API and the command line accept) into its object. The adaptive loop
+(:func:`ipfit.fit_adaptive`) asks the rule everything rule-specific: whether to measure, how far
+to go, whether a degree is clean or needs a repair, when to stop, which degree to select and
+the texts. A new rule is a subclass of :class:`DegreeRule`, passed as ``rule=`` (see its
+protocol); registering it in :data:`RULES` makes its name accepted too.
 """
 
 from __future__ import annotations
 
-from typing import Sequence
+from typing import TYPE_CHECKING, Mapping, Sequence
 
-from ._validation import error
+from ._validation import check_choice, error
 from .quality import Quality
 
-__all__ = ["RULES", "select_degree", "select_degree_geometric", "select_degree_capture", "gains", "capture_stop",
-           "is_clean", "select", "describe_unclean", "explain", "verdict", "GAIN", "DISTANCE_GAIN", "PATIENCE",
-           "TOLERANCE", "is_speck", "SPECK_REACH"]
+if TYPE_CHECKING:
+    from .adaptive import DegreeResult
 
-RULES = ("capture", "geometric", "paper")
+__all__ = ["RULES", "DegreeRule", "CaptureRule", "GeometricRule", "PaperRule", "CAPTURE", "GEOMETRIC", "PAPER",
+           "get_rule", "select_degree", "select_degree_geometric", "select_degree_capture", "gains", "capture_stop",
+           "is_clean", "describe_unclean", "GAIN", "DISTANCE_GAIN", "PATIENCE", "TOLERANCE", "is_speck",
+           "SPECK_REACH", "DEFAULT_MAX_DEGREE", "CAPTURE_MAX_DEGREE", "PRECISION_TARGET", "REPAIR_RECALL"]
+
+#: Maximum degree tried by default, per dimension (the paper: degrees 2 to 10 are the norm).
+DEFAULT_MAX_DEGREE = {2: 10, 3: 8}
+#: ... and with the capture rule, which stops by itself once the shape is captured and so can
+#: afford the higher degrees that thin or detailed contours need (docs/degree-rule.md).
+CAPTURE_MAX_DEGREE = {2: 14, 3: 8}
 
 #: capture rule: the smallest F-score or recall gain (over the best so far) worth another degree.
 GAIN = 0.01
@@ -49,6 +65,11 @@ DISTANCE_GAIN = 0.25
 PATIENCE = 2
 #: capture rule: the lowest clean degree within this F-score of the best clean one is selected.
 TOLERANCE = 0.01
+#: capture rule: a clean degree whose precision is below PRECISION_TARGET while its recall is at
+#: least REPAIR_RECALL is repaired too: the zero set reaches the data but also bulges away from
+#: it. A degree that misses the data as well is too low, not defective.
+PRECISION_TARGET = 0.95
+REPAIR_RECALL = 0.9
 
 
 def select_degree(degrees: Sequence[int], smoothness: Sequence[float], epsilon: float = 0.01,
@@ -112,17 +133,34 @@ def is_speck(component: dict, tau: float) -> bool:
     return component["size"] < (tau / 2) ** (len(component["center"]) - 1) and component["distance"] < SPECK_REACH * tau
 
 
-def is_clean(q: Quality | None) -> bool:
-    """Clean for the capture rule: a non-empty zero set, every spurious component a speck
-    (:func:`is_speck`) and every piece near the data closed inside the box.
+def is_clean(q: Quality | None, *, ignore_specks: bool = True) -> bool:
+    """Whether a measured zero set is clean: the one definition, parametrised as the rules differ.
 
+    Parameters
+    ----------
+    q : the degree's :class:`~ipfit.quality.Quality`, or None when it was not measured (never clean).
+    ignore_specks : True (the capture rule): a non-empty zero set, every spurious component a
+        speck (:func:`is_speck`) and every piece *near the data* closed inside the box. False
+        (the geometric rule): no spurious component at all and the *whole* zero set closed
+        inside the box.
+
+    Returns
+    -------
+    bool
+
+    Examples
+    --------
     >>> from ipfit.datasets import synthetic
     >>> from ipfit.quality import quality
     >>> shape = synthetic.circle()
     >>> is_clean(quality(shape.polynomial, shape.points))
     True
     """
-    if q is None or q.n_components == 0:
+    if q is None:
+        return False
+    if not ignore_specks:
+        return q.n_spurious == 0 and bool(q.closed)
+    if q.n_components == 0:
         return False
     return all(is_speck(c, q.tau) for c in q.spurious) and q.n_open == 0
 
@@ -189,24 +227,6 @@ def select_degree_capture(degrees: Sequence[int], f_scores: Sequence[float], cle
     return min((i for i in pool if f_scores[i] >= best - TOLERANCE), key=lambda i: degrees[i])
 
 
-def select(results, rule, epsilon, reason, fixed: bool) -> tuple[int, str]:
-    complete = reason != "interrupted"
-    if fixed and complete:
-        return 0, "fixed"
-    smooth = [r.smoothness for r in results]
-    degs = [r.degree for r in results]
-    if rule == "capture":
-        index = select_degree_capture(degs, [r.quality.f_score for r in results],
-                                      [is_clean(r.quality) for r in results])
-        return index, reason
-    if rule == "geometric":
-        index, rule_reason = select_degree_geometric(degs, smooth, [r.clean for r in results],
-                                                     [r.quality.f_score for r in results], epsilon, complete)
-    else:
-        index, rule_reason = select_degree(degs, smooth, epsilon, complete=complete)
-    return index, (rule_reason if complete else "interrupted")
-
-
 def describe_unclean(q: Quality) -> str:
     """Why a zero set is not clean, in one phrase (empty when it is clean)."""
     parts = []
@@ -220,67 +240,234 @@ def describe_unclean(q: Quality) -> str:
     return "; ".join(parts)
 
 
-def verdict(results, i, index, message, rule, epsilon) -> str:
-    """Why degree ``i`` was selected or not, in one line."""
-    entry, chosen = results[i], results[index]
-    if rule == "capture":
-        return _capture_verdict(results, i, index, message, epsilon)
-    if i == index:
-        return "selected: " + message
-    if entry.quality is not None and not entry.clean:
-        return "rejected: " + describe_unclean(entry.quality)
-    if i > index:
-        gain = entry.smoothness - results[i - 1].smoothness
-        if gain <= epsilon:
-            return f"not needed: smoothness gain {gain:.4g} over degree {results[i - 1].degree} <= epsilon {epsilon:g}"
-        if rule == "geometric" and chosen.quality is not None:
-            return f"clean, but degree {chosen.degree} was selected (F-score {chosen.quality.f_score:.3f})"
-        return f"tried after the selected degree {chosen.degree}"
-    gain = results[i + 1].smoothness - entry.smoothness
-    if gain > epsilon:
-        return f"superseded: degree {results[i + 1].degree} gained {gain:.4g} > epsilon {epsilon:g} in smoothness"
-    return f"clean, but degree {chosen.degree} was selected"
+# -- the rules as objects --------------------------------------------------------------------------
+class DegreeRule:
+    """A degree rule: what :func:`ipfit.fit_adaptive` asks about the degrees it fits.
+
+    The loop fits degree after degree; after each one it asks :meth:`stop`, and at the end
+    :meth:`select` picks a degree, :meth:`explain` says why and :meth:`reason` gives each
+    degree's line. A subclass sets the attributes and implements :meth:`stop` and
+    :meth:`select`; the other methods have working defaults. Results record the rule by
+    :attr:`name`.
+
+    Attributes
+    ----------
+    name : str
+        The rule's name, written in results (``adaptive.rule``) and accepted by
+        :func:`get_rule` once the rule is in :data:`RULES`.
+    measured : bool
+        Whether every degree's zero set is measured (:class:`~ipfit.quality.Quality`) and, when
+        not clean, repaired; an unmeasured degree has ``quality=None`` and is never clean.
+    ignore_specks : bool
+        Which definition of clean applies (:func:`is_clean`).
+    max_degrees : Mapping[int, int]
+        The last degree tried when the caller gives none, per dimension (:meth:`max_degree`).
+    points_per_coefficient : int
+        Automatic degrees (no ``max_degree`` given) keep at least this many points per
+        coefficient.
+    """
+
+    name: str = ""
+    measured: bool = True
+    ignore_specks: bool = False
+    max_degrees: Mapping[int, int] = DEFAULT_MAX_DEGREE
+    points_per_coefficient: int = 1
+
+    def __repr__(self) -> str:
+        return f"<{type(self).__name__} {self.name!r}>"
+
+    def max_degree(self, dim: int) -> int:
+        """The last degree tried in ``dim`` dimensions when the caller gives no maximum."""
+        return self.max_degrees[dim]
+
+    def is_clean(self, quality: Quality | None) -> bool:
+        """Whether a degree's zero set is clean for this rule (:func:`is_clean`)."""
+        return is_clean(quality, ignore_specks=self.ignore_specks)
+
+    def best_clean_f(self, results: Sequence[DegreeResult]) -> float:
+        """The best F-score among the clean degrees of ``results`` (0 when none is clean)."""
+        return max((r.quality.f_score for r in results if self.is_clean(r.quality)), default=0.0)
+
+    def is_done(self, entry: DegreeResult, best_f: float = 0.0) -> bool:
+        """Nothing left to repair in ``entry`` (:func:`ipfit.repair.repair` stops, or does not
+        start); ``best_f`` is the best clean F-score of the degrees before it. Default: clean."""
+        return self.is_clean(entry.quality)
+
+    def stop(self, results: Sequence[DegreeResult], epsilon: float) -> str | None:
+        """Whether the loop stops after the last of ``results``: why in one word (it becomes
+        the result's ``reason``), or None to fit the next degree."""
+        raise NotImplementedError(f"{type(self).__name__}.stop")
+
+    def select(self, results: Sequence[DegreeResult], epsilon: float, reason: str) -> tuple[int, str]:
+        """``(index, reason)``: the index into ``results`` of the selected degree, and the
+        result's reason. ``reason`` is how the loop ended: what :meth:`stop` returned,
+        ``'max_degree'`` or ``'interrupted'`` (Ctrl-C: ``results`` are the degrees finished)."""
+        raise NotImplementedError(f"{type(self).__name__}.select")
+
+    def explain(self, results: Sequence[DegreeResult], index: int, reason: str, epsilon: float) -> str:
+        """The result's message: which degree was selected and why, in words."""
+        return f"degree {results[index].degree}: selected by the {self.name} rule ({reason})"
+
+    def reason(self, results: Sequence[DegreeResult], i: int, index: int, message: str, epsilon: float) -> str:
+        """Why degree ``results[i]`` was selected or not, in one line (``message`` is :meth:`explain`'s)."""
+        if i == index:
+            return "selected: " + message
+        if self.measured and not self.is_clean(results[i].quality):
+            return "rejected: " + (describe_unclean(results[i].quality) or "empty zero set")
+        return f"not selected: degree {results[index].degree} was"
+
+    def success(self, results: Sequence[DegreeResult], index: int) -> bool:
+        """Whether the selection succeeded: the selected degree is clean, or none is."""
+        return self.is_clean(results[index].quality) or not any(self.is_clean(r.quality) for r in results)
 
 
-def _capture_verdict(results, i, index, message, epsilon) -> str:
-    entry, chosen = results[i], results[index]
-    gained = gains(results, i, epsilon)
-    tail = f" (gained: {', '.join(gained)})" if gained else (" (no substantial gain)" if i else "")
-    if i == index:
-        return "selected: " + message + tail
-    if not is_clean(entry.quality):
-        return "rejected: " + (describe_unclean(entry.quality) or "empty zero set") + tail
-    f, best = entry.quality.f_score, chosen.quality.f_score
-    if f < best - TOLERANCE:
-        return f"superseded: F-score {f:.3f} is more than {TOLERANCE:g} below degree {chosen.degree}'s {best:.3f}" + tail
-    return f"clean, F-score {f:.3f} within {TOLERANCE:g} of the best, but degree {chosen.degree} is lower" + tail
+class PaperRule(DegreeRule):
+    """Algorithm 1 exactly: stop as soon as the smoothness gains no more than ε, take the
+    degree before; nothing is measured."""
+
+    name = "paper"
+    measured = False
+
+    def stop(self, results, epsilon):
+        if len(results) >= 2 and results[-1].smoothness - results[-2].smoothness <= epsilon:
+            return "criterion"
+        return None
+
+    def select(self, results, epsilon, reason):
+        complete = reason != "interrupted"
+        index, rule_reason = self._choose(results, epsilon, complete)
+        return index, (rule_reason if complete else "interrupted")
+
+    def _choose(self, results, epsilon, complete: bool) -> tuple[int, str]:
+        return select_degree([r.degree for r in results], [r.smoothness for r in results], epsilon,
+                             complete=complete)
+
+    def explain(self, results, index, reason, epsilon):
+        chosen = results[index]
+        if reason == "interrupted":
+            return f"interrupted: degree {chosen.degree} selected among the {len(results)} degrees finished"
+        if reason == "criterion":
+            nxt = results[index + 1]
+            return (f"degree {chosen.degree}: the smoothness gain at degree {nxt.degree} was "
+                    f"{nxt.smoothness - chosen.smoothness:.4g} <= epsilon = {epsilon:g}")
+        return f"degree {chosen.degree}: the last degree tried (the smoothness still improved by more than {epsilon:g})"
+
+    def reason(self, results, i, index, message, epsilon):
+        entry, chosen = results[i], results[index]
+        if i == index:
+            return "selected: " + message
+        if entry.quality is not None and not self.is_clean(entry.quality):
+            return "rejected: " + describe_unclean(entry.quality)
+        if i > index:
+            gain = entry.smoothness - results[i - 1].smoothness
+            if gain <= epsilon:
+                return (f"not needed: smoothness gain {gain:.4g} over degree {results[i - 1].degree} "
+                        f"<= epsilon {epsilon:g}")
+            if chosen.quality is not None:  # measured: the geometric rule chose on the F-score
+                return f"clean, but degree {chosen.degree} was selected (F-score {chosen.quality.f_score:.3f})"
+            return f"tried after the selected degree {chosen.degree}"
+        gain = results[i + 1].smoothness - entry.smoothness
+        if gain > epsilon:
+            return f"superseded: degree {results[i + 1].degree} gained {gain:.4g} > epsilon {epsilon:g} in smoothness"
+        return f"clean, but degree {chosen.degree} was selected"
 
 
-def _capture_explain(results, index, reason) -> str:
-    chosen = results[index]
-    stop = {"captured": f"the shape was captured (F-score >= {1 - TOLERANCE:g} on a clean degree)",
-            "flattened": f"{PATIENCE} degrees in a row gained nothing substantial",
-            "max_degree": "the last degree was reached",
-            "interrupted": "the run was interrupted"}[reason]
-    if not is_clean(chosen.quality):
-        return f"degree {chosen.degree}: no degree tried is clean, so the best F-score was taken; the loop stopped: {stop}"
-    return (f"degree {chosen.degree}: the lowest clean degree within {TOLERANCE:g} of the best clean F-score "
-            f"({chosen.quality.f_score:.3f}); the loop stopped: {stop}")
+class GeometricRule(PaperRule):
+    """Algorithm 1 restricted to strictly clean degrees (no spurious component, closed inside the
+    box) when one exists: it stops on the criterion only once a clean degree was found, and
+    replaces an unclean choice by the clean degree with the best F-score."""
+
+    name = "geometric"
+    measured = True
+
+    def stop(self, results, epsilon):
+        stop = super().stop(results, epsilon)
+        return stop if stop is None or any(self.is_clean(r.quality) for r in results) else None
+
+    def explain(self, results, index, reason, epsilon):
+        if reason == "geometric":
+            return (f"degree {results[index].degree}: the clean degree with the highest F-score; the paper's rule "
+                    "chose a degree whose zero set has spurious components or is not closed")
+        return super().explain(results, index, reason, epsilon)
+
+    def _choose(self, results, epsilon, complete):
+        return select_degree_geometric([r.degree for r in results], [r.smoothness for r in results],
+                                       [self.is_clean(r.quality) for r in results],
+                                       [r.quality.f_score for r in results], epsilon, complete)
 
 
-def explain(results, index, reason, epsilon, rule="paper") -> str:
-    chosen = results[index]
-    if rule == "capture" and reason != "fixed":
-        return _capture_explain(results, index, reason)
-    if reason == "fixed":
-        return f"fixed degree {chosen.degree}"
-    if reason == "interrupted":
-        return f"interrupted: degree {chosen.degree} selected among the {len(results)} degrees finished"
-    if reason == "criterion":
-        nxt = results[index + 1]
-        return (f"degree {chosen.degree}: the smoothness gain at degree {nxt.degree} was "
-                f"{nxt.smoothness - chosen.smoothness:.4g} <= epsilon = {epsilon:g}")
-    if reason == "geometric":
-        return (f"degree {chosen.degree}: the clean degree with the highest F-score; the paper's rule chose a degree "
-                "whose zero set has spurious components or is not closed")
-    return f"degree {chosen.degree}: the last degree tried (the smoothness still improved by more than {epsilon:g})"
+class CaptureRule(DegreeRule):
+    """The default rule: go on while a degree gains substantially, stop once the shape is
+    captured or :data:`PATIENCE` degrees gain nothing, select the lowest clean degree within
+    :data:`TOLERANCE` of the best clean F-score (see the module's notes). Specks do not count."""
+
+    name = "capture"
+    ignore_specks = True
+    max_degrees = CAPTURE_MAX_DEGREE
+    # Near interpolation a fit follows the points and wiggles between them; the capture rule's
+    # higher default degrees would get there on small clouds.
+    points_per_coefficient = 2
+
+    def is_done(self, entry, best_f=0.0):
+        """Clean and precise enough (precision at least :data:`PRECISION_TARGET`), too low a
+        degree (recall below :data:`REPAIR_RECALL`: it misses data) or out of the race (even a
+        precision of 1 would leave its F-score more than :data:`TOLERANCE` below ``best_f``).
+        So a clean degree that bulges away from the data is repaired too."""
+        q = entry.quality
+        if not self.is_clean(q):
+            return False
+        if q.precision >= PRECISION_TARGET or q.recall < REPAIR_RECALL:
+            return True
+        return 2 * q.recall / (1 + q.recall) < best_f - TOLERANCE
+
+    def stop(self, results, epsilon):
+        return capture_stop(results, epsilon)
+
+    def select(self, results, epsilon, reason):
+        index = select_degree_capture([r.degree for r in results], [r.quality.f_score for r in results],
+                                      [self.is_clean(r.quality) for r in results])
+        return index, reason
+
+    def explain(self, results, index, reason, epsilon):
+        chosen = results[index]
+        stop = {"captured": f"the shape was captured (F-score >= {1 - TOLERANCE:g} on a clean degree)",
+                "flattened": f"{PATIENCE} degrees in a row gained nothing substantial",
+                "max_degree": "the last degree was reached",
+                "interrupted": "the run was interrupted"}[reason]
+        if not self.is_clean(chosen.quality):
+            return (f"degree {chosen.degree}: no degree tried is clean, so the best F-score was taken; "
+                    f"the loop stopped: {stop}")
+        return (f"degree {chosen.degree}: the lowest clean degree within {TOLERANCE:g} of the best clean F-score "
+                f"({chosen.quality.f_score:.3f}); the loop stopped: {stop}")
+
+    def reason(self, results, i, index, message, epsilon):
+        entry, chosen = results[i], results[index]
+        gained = gains(results, i, epsilon)
+        tail = f" (gained: {', '.join(gained)})" if gained else (" (no substantial gain)" if i else "")
+        if i == index:
+            return "selected: " + message + tail
+        if not self.is_clean(entry.quality):
+            return "rejected: " + (describe_unclean(entry.quality) or "empty zero set") + tail
+        f, best = entry.quality.f_score, chosen.quality.f_score
+        if f < best - TOLERANCE:
+            return (f"superseded: F-score {f:.3f} is more than {TOLERANCE:g} below degree {chosen.degree}'s "
+                    f"{best:.3f}" + tail)
+        return f"clean, F-score {f:.3f} within {TOLERANCE:g} of the best, but degree {chosen.degree} is lower" + tail
+
+
+CAPTURE = CaptureRule()
+GEOMETRIC = GeometricRule()
+PAPER = PaperRule()
+#: The rules by name: the names the public API and ``ipfit fit --rule`` accept.
+RULES: Mapping[str, DegreeRule] = {rule.name: rule for rule in (CAPTURE, GEOMETRIC, PAPER)}
+
+
+def get_rule(rule: str | DegreeRule) -> DegreeRule:
+    """The rule object of ``rule``: a :class:`DegreeRule` as is, a name (any case) from :data:`RULES`.
+
+    >>> get_rule("Capture") is CAPTURE
+    True
+    """
+    if isinstance(rule, DegreeRule):
+        return rule
+    return RULES[check_choice(rule, "rule", RULES)]

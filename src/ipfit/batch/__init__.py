@@ -56,7 +56,7 @@ from typing import Callable, Iterable
 
 from .. import _atomic
 from .._result_schema import FORMAT_NAME, validate_result
-from .._validation import check_int
+from .._validation import check_int, error
 from ..exceptions import InvalidInputError
 from ..options import DEFAULT_DELTA, DEFAULT_EPSILON, DEFAULT_METHOD, DEFAULT_RULE, SearchOptions
 from ._cluster import (CONNECT_TIMEOUT, THREAD_ENV, HeldSignals, _client_for, check_workers, local_cluster,
@@ -186,7 +186,7 @@ def write_summary(folder: Path, batch: BatchResult) -> list[Path]:
 def fit_many(inputs, *, client=None, workers: int | None = None, scheduler: str | None = None,
              output: str | os.PathLike | None = None, method=DEFAULT_METHOD, options: SearchOptions | None = None,
              min_degree: int = 2, max_degree: int | None = None, epsilon: float = DEFAULT_EPSILON,
-             delta: float = DEFAULT_DELTA, rule: str = DEFAULT_RULE, seed: int = 0,
+             delta: float = DEFAULT_DELTA, rule=DEFAULT_RULE, seed: int = 0,
              progress: Callable[[dict], None] | None = None, also_writes: Iterable[str] = ()) -> BatchResult:
     """Fit every shape of ``inputs`` with :func:`~ipfit.fit_adaptive` on a Dask cluster.
 
@@ -232,7 +232,7 @@ def fit_many(inputs, *, client=None, workers: int | None = None, scheduler: str 
     if client is None and scheduler is None:
         workers = min(2, max_workers()) if workers is None else check_workers(workers)
     tasks = expand_inputs(inputs)
-    settings = FitSettings(method, options, min_degree, max_degree, epsilon, delta, rule,
+    settings = FitSettings(method, options, min_degree, max_degree, epsilon, delta, _rule_name(rule),
                            check_int(seed, "seed", minimum=0))
     _check_settings(settings)
     folder = None if output is None else Path(output)
@@ -268,6 +268,19 @@ def fit_many(inputs, *, client=None, workers: int | None = None, scheduler: str 
     if held.signals and not batch.interrupted:  # Ctrl-C while the cluster stopped: all was done, but say so
         batch = dataclasses.replace(batch, interrupted=True, signal=held.signals[0])
     return batch
+
+
+def _rule_name(rule):
+    """A batch records its rule by name (in every result and in the hash that resumes it), and its
+    workers look the name up: a registered rule object is its name; a name is kept as given."""
+    from ..rules import RULES, DegreeRule
+
+    if not isinstance(rule, DegreeRule):
+        return rule
+    if RULES.get(rule.name) is not rule:
+        raise error("rule", "a rule's name or a rule of ipfit.rules.RULES", repr(rule),
+                    "A batch records its rule by name: register the rule in ipfit.rules.RULES.")
+    return rule.name
 
 
 def _check_settings(settings: FitSettings) -> None:

@@ -90,7 +90,7 @@ def add_fit_options(parser: argparse.ArgumentParser) -> None:
                         default=None, metavar="W",
                         help="weight of the far-field term that keeps the zero set from growing spurious sheets "
                         f"(default {RECOMMENDED.far_term_weight:g}; 0 is the paper's objective)")
-    parser.add_argument("--rule", choices=RULES, default=None,
+    parser.add_argument("--rule", choices=list(RULES), default=None,
                         help="degree rule: 'capture' (default) goes on while a degree gains substantially, stops "
                         "once the shape is captured and takes the lowest clean degree within 0.01 of the best "
                         "F-score; 'geometric' is Algorithm 1 restricted to clean degrees; 'paper' is Algorithm 1 "
