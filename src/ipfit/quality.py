@@ -45,11 +45,12 @@ from typing import Any, Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ._distance import DEFAULT_MAX_SAMPLES, DEFAULT_TAU_FRACTION, Target, data_target, mesh_target, query_workers
+from ._distance import (DEFAULT_MAX_SAMPLES, DEFAULT_TAU_FRACTION, Samples, Target, data_target, mesh_target,
+                        query_workers)
 from ._recent import Recent, array_key
 from ._validation import as_faces, as_points, check_int, check_positive, error
 from .polynomial import ImplicitPolynomial
-from .zeroset import Samples, ZeroSet, extract_zero_set
+from .zeroset import ZeroSet, extract_zero_set
 
 __all__ = ["Quality", "quality", "spurious_components", "stray_samples", "looks_like_contour", "DEFAULT_TAU_FRACTION"]
 
