@@ -181,7 +181,7 @@ def main() -> None:
     parser.add_argument("--no-adaptive", action="store_true")
     args = parser.parse_args()
 
-    from ipfit.cli._common import load_input
+    from ipfit import load
     from ipfit.datasets import synthetic
     from ipfit.quality import looks_like_contour, quality
     from ipfit.zeroset import extract_zero_set
@@ -194,7 +194,7 @@ def main() -> None:
     print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     rows = []
     for name in args.datasets:
-        data = load_input(name)
+        data = load(name)
         ordered = data.points.shape[1] == 2 and looks_like_contour(data.points)
         for degree in args.degrees:
             for method, poly in _fits(data, degree, methods):

@@ -39,12 +39,11 @@ SURFACES = ("bunny_res3", "apple", "hammerhead")
 
 
 def measure(specs, degrees, seeds) -> list[dict]:
-    from ipfit import RECOMMENDED, fit_adaptive
-    from ipfit.cli._common import load_input
+    from ipfit import RECOMMENDED, fit_adaptive, load
 
     rows = []
     for spec in specs:
-        data = load_input(spec)
+        data = load(spec)
         for degree in degrees:
             for seed in seeds:
                 for name, budget in BUDGETS.items():

@@ -29,6 +29,17 @@ def start_worker(src: str | None) -> None:
         fit_adaptive(shape.points, shape.normals, max_degree=4, rng=0)
 
 
+def load_data(spec: str):
+    """The data of ``spec`` (a path or a bundled dataset's name) with this worker's code:
+    :func:`ipfit.load`, or in a checkout older than it the command line's loader, which read
+    the same points, normals and faces."""
+    try:
+        from ipfit import load
+    except ImportError:  # a --before checkout from before ipfit.load
+        from ipfit.cli._common import load_input as load
+    return load(spec)
+
+
 def run_side_by_side(task: Callable, before: str, old_jobs: list[tuple], new_jobs: list[tuple]) -> list[dict]:
     """``task(*job)`` for the old jobs with the code of ``before`` and the new ones with this
     checkout, the two workers side by side; returns the rows as they finish (each also printed)."""

@@ -32,7 +32,7 @@ from datetime import date
 from pathlib import Path
 
 import numpy as np
-from _versions import n_beyond_specks, run_side_by_side, spurious_cell, spurious_record
+from _versions import load_data, n_beyond_specks, run_side_by_side, spurious_cell, spurious_record
 
 PIPELINES = ("paper", "geometric", "capture")
 BUNDLED = ("boot", "airplane", "butterfly")
@@ -49,10 +49,9 @@ def _settings(pipeline: str):
 def fit_one(spec: str, pipeline: str, seed: int) -> dict:
     """One pipeline on one contour: selected degree, its quality and the fit's seconds."""
     from ipfit import fit_adaptive
-    from ipfit.cli._common import load_input
     from ipfit.quality import quality
 
-    data = load_input(spec)
+    data = load_data(spec)
     start = time.perf_counter()
     result = fit_adaptive(data.points, data.normals, rng=seed, **_settings(pipeline))
     seconds = time.perf_counter() - start
@@ -81,14 +80,13 @@ def _summary(rows: list[dict], pipeline: str) -> dict:
 def conditioning(names=BUNDLED, degrees=(6, 10, 14)) -> list[str]:
     """Condition numbers, on each bundled contour's normalised points, of the monomial basis the
     coefficients are written in and of the whitened coordinates the search and the polish use."""
-    from ipfit import basis
-    from ipfit.cli._common import load_input
+    from ipfit import basis, load
     from ipfit.polynomial import Normalization
 
     lines = ["| contour | " + " | ".join(f"κ at degree {g}" for g in degrees) + " |",
              "|---|" + "---|" * len(degrees)]
     for name in names:
-        points = load_input(name).points
+        points = load(name).points
         u = Normalization.from_points(points).apply(points)
         cells = []
         for g in degrees:

@@ -41,7 +41,7 @@ def _bundled_names() -> list[str]:
 
 def load_data(name: str, result: dict):
     """(points, normals, faces) of a result's data, or (None, None, None) when not found."""
-    from ipfit.cli._common import load_input
+    from ipfit import load
 
     recorded = result.get("input")
     candidates = []
@@ -50,7 +50,7 @@ def load_data(name: str, result: dict):
     candidates.append(name)
     for spec in candidates:
         try:
-            data = load_input(spec)
+            data = load(spec)
         except Exception:  # noqa: BLE001  try the next candidate; a figure without points still helps
             continue
         if data.points.shape[1] == result.get("dim", data.points.shape[1]):

@@ -27,7 +27,7 @@ from datetime import date
 from pathlib import Path
 
 import numpy as np
-from _versions import run_side_by_side
+from _versions import load_data, run_side_by_side
 
 BUNDLED = ("boot", "airplane", "butterfly", "apple", "duck", "bunny")
 
@@ -35,9 +35,8 @@ BUNDLED = ("boot", "airplane", "butterfly", "apple", "duck", "bunny")
 def fit_one(spec: str, side: str, seed: int) -> dict:
     """The recommended pipeline of this worker's code on one shape."""
     from ipfit import fit_adaptive
-    from ipfit.cli._common import load_input
 
-    data = load_input(spec)
+    data = load_data(spec)
     start = time.perf_counter()
     result = fit_adaptive(data.points, data.normals, faces=data.faces, rng=seed)
     seconds = time.perf_counter() - start

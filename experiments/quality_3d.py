@@ -28,7 +28,7 @@ from datetime import date
 from pathlib import Path
 
 import numpy as np
-from _versions import n_beyond_specks, run_side_by_side, spurious_cell, spurious_record
+from _versions import load_data, n_beyond_specks, run_side_by_side, spurious_cell, spurious_record
 
 BUNDLED = ("bunny", "apple", "duck")
 PIPELINES = ("before", "capture")
@@ -37,9 +37,8 @@ PIPELINES = ("before", "capture")
 def fit_one(spec: str, pipeline: str, seed: int) -> dict:
     """The recommended pipeline of this worker's code on one model."""
     from ipfit import fit_adaptive
-    from ipfit.cli._common import load_input
 
-    data = load_input(spec)
+    data = load_data(spec)
     start = time.perf_counter()
     result = fit_adaptive(data.points, data.normals, faces=data.faces, rng=seed)
     seconds = time.perf_counter() - start
@@ -65,8 +64,7 @@ def figures(rows: list[dict], specs: dict[str, str], folder: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from ipfit import ImplicitPolynomial
-    from ipfit.cli._common import load_input
+    from ipfit import ImplicitPolynomial, load
     from ipfit.plotting import plot_surface, save_figure
 
     folder.mkdir(parents=True, exist_ok=True)
@@ -74,7 +72,7 @@ def figures(rows: list[dict], specs: dict[str, str], folder: Path) -> None:
     for r in rows:
         by_model.setdefault(r["model"], {})[r["pipeline"]] = r
     for model, got in sorted(by_model.items()):
-        data = load_input(specs[model])
+        data = load(specs[model])
         up = "y" if model in ("bunny", "duck") else "z"
         fig = plt.figure(figsize=(9, 4.4))
         for k, pipeline in enumerate(PIPELINES):

@@ -1,4 +1,4 @@
-"""Compiled exact point–segment and point–triangle distances for :mod:`ipfit.quality`, imported lazily.
+"""Compiled exact point–segment and point–triangle distances for :mod:`ipfit._distance`, imported lazily.
 
 Kept apart so that ``import ipfit`` does not pay numba's import time. The kernels are serial
 (``nogil``, no ``prange``): on a 2-core machine numba's threads fight OpenBLAS's spinning

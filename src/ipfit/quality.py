@@ -45,15 +45,14 @@ from typing import Any, Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ._distance import (DEFAULT_MAX_SAMPLES, DEFAULT_TAU_FRACTION, Samples, Target, data_target, mesh_target,
+                        query_workers)
 from ._recent import Recent, array_key
 from ._validation import as_faces, as_points, check_int, check_positive, error
 from .polynomial import ImplicitPolynomial
-from .zeroset import Samples, ZeroSet, extract_zero_set, sample_segments, sample_triangles
+from .zeroset import ZeroSet, extract_zero_set
 
 __all__ = ["Quality", "quality", "spurious_components", "stray_samples", "looks_like_contour", "DEFAULT_TAU_FRACTION"]
-
-DEFAULT_TAU_FRACTION = 0.02
-DEFAULT_MAX_SAMPLES = 2_000_000
 
 
 @dataclass(frozen=True)
@@ -131,149 +130,7 @@ def looks_like_contour(points: ArrayLike) -> bool:
     return bool(np.quantile(gaps, 0.95) <= 4 * scale)
 
 
-# scipy's k-d tree starts its worker threads on every call: a loss on small calls (2D contours,
-# the data's few hundred points), a gain on the tens of thousands of samples of a 3D zero set
-# (benchmarks/bench_quality.py times the measurement).
-_THREADED_QUERIES = 20_000
-# Leaves of 64 samples: a query far from a surface has many near-equidistant samples, which
-# larger leaves visit with less tree overhead; the answers are the same.
-_LEAF_SIZE = 64
-
-
-def _workers(n_queries: int) -> int:
-    from .objective import default_threads
-
-    return default_threads() if n_queries >= _THREADED_QUERIES else 1
-
-
-class _Target:
-    """A shape to measure distances to: bare points, segments or triangles, with its tolerance τ.
-
-    Samples of the shape find candidates (the elements of the k nearest samples) and the
-    distance is then exact to those elements. Every "within τ" decision is exact: a query
-    whose candidates are all farther than τ is asked again with more neighbours until every
-    sample within τ + r is among them, r being the largest distance from a sample to a point
-    of the piece it stands for (so the piece holding the nearest point within τ, if any, has
-    been seen). Within the band 2τ + r the distance is exact whenever the nearest element is
-    among the candidates, and never exceeds the nearest-sample distance. Farther away, where
-    the distance only enters the Chamfer mean, it is computed the same way for up to
-    ``far_budget`` evenly spread queries and, for the others, is that of their nearest such
-    query: a k-d tree answers far queries against a dense surface slowly, and the answer
-    there needs no sub-τ precision.
-    """
-
-    _ENTRIES = 1 << 22  # neighbours per k-d tree call when completing candidates
-
-    def __init__(self, samples: Samples, kind: str, corners: tuple[NDArray, ...] = (), *, tau: float = np.inf,
-                 far_budget: int = 5000, k: int = 6) -> None:
-        from scipy.spatial import cKDTree
-
-        self.samples, self.kind, self.corners = samples, kind, corners
-        self.tau, self.far_budget = tau, far_budget
-        self.k = 1 if kind == "points" else min(k, len(samples.points))
-        self.reach = _piece_radius(samples, kind, corners)
-        self.band = 2 * tau + self.reach
-        self.tree = cKDTree(samples.points, leafsize=_LEAF_SIZE)
-        self._cells = None
-
-    def _build_cells(self) -> None:
-        # Cells of side `band` holding samples, grown by one cell: a query outside them is
-        # farther than `band` from every sample, and needs no k-d tree search to say so.
-        points = self.samples.points
-        dim = points.shape[1]
-        keys = np.floor(points / self.band).astype(np.int64)
-        self._lo = keys.min(axis=0) - 1
-        self._extent = keys.max(axis=0) - self._lo + 2
-        codes = np.unique(self._encode(keys))  # 1D codes: far cheaper to sort than rows
-        offsets = np.stack(np.meshgrid(*[[-1, 0, 1]] * dim, indexing="ij"), axis=-1).reshape(-1, dim)
-        self._cells = np.unique((codes[:, None] + self._encode(offsets - self._lo)[None, :]
-                                 - self._encode(np.zeros((1, dim), dtype=np.int64) - self._lo)).ravel())
-
-    def _encode(self, keys: NDArray) -> NDArray:
-        code = np.zeros(len(keys), dtype=np.int64)
-        for j in range(keys.shape[1]):
-            code = code * self._extent[j] + (keys[:, j] - self._lo[j])
-        return code
-
-    def _maybe_near(self, query: NDArray) -> NDArray[np.bool_]:
-        # The cells only pay for themselves over many queries: a few data points against a
-        # dense zero set go straight to the (bounded) k-d tree search.
-        if not np.isfinite(self.band) or len(query) < len(self.samples.points) // 4:
-            return np.ones(len(query), dtype=bool)
-        if self._cells is None:
-            self._build_cells()
-        keys = np.floor(query / self.band).astype(np.int64)
-        inside = np.all((keys >= self._lo) & (keys < self._lo + self._extent), axis=1)
-        out = np.zeros(len(query), dtype=bool)
-        out[inside] = np.isin(self._encode(keys[inside]), self._cells)
-        return out
-
-    def _nearest(self, query: NDArray, k: int, bound: float = np.inf) -> tuple[NDArray, NDArray]:
-        """Distances to the k nearest samples (within ``bound``) and the nearest candidate element."""
-        d, idx = self.tree.query(query, k=[1] if k == 1 else k, distance_upper_bound=bound,
-                                 workers=_workers(len(query)))
-        d, idx = d.reshape(len(query), k), idx.reshape(len(query), k)
-        if self.kind == "points":
-            return d, d[:, 0]
-        from ._distance_kernels import nearest_candidates
-
-        a, b, *c = self.corners
-        return d, nearest_candidates(query, idx, len(self.samples.points), self.samples.elements, a, b,
-                                     c[0] if c else a, d[:, 0], self.kind == "triangles")
-
-    def distance(self, query: NDArray) -> NDArray:
-        from scipy.spatial import cKDTree
-
-        query = np.ascontiguousarray(query, dtype=np.float64)
-        out = np.full(len(query), np.inf)
-        rows = np.flatnonzero(self._maybe_near(query))
-        d, out[rows] = self._nearest(query[rows], self.k, self.band)
-        # Complete the candidates of queries still beyond τ while a sample within τ + reach was
-        # left out: only then could a piece within τ have been missed.
-        bound = self.tau + self.reach
-        k, n = self.k, len(self.samples.points)
-        todo = rows[(out[rows] > self.tau) & (d[:, -1] <= bound)] if self.kind != "points" else rows[:0]
-        while todo.size and k < n:
-            k = min(4 * k, n)
-            still = []
-            for block in np.array_split(todo, -(-todo.size * k // self._ENTRIES)):  # bounded memory
-                d, nearest = self._nearest(query[block], k, bound * (1 + 1e-12))
-                out[block] = np.minimum(out[block], nearest)
-                still.append(block[(out[block] > self.tau) & (d[:, -1] <= bound)])
-            todo = np.concatenate(still)
-        far = np.flatnonzero(~np.isfinite(out))
-        if far.size:
-            probe = far[:: -(-far.size // self.far_budget)]
-            out[probe] = self._nearest(query[probe], self.k)[1]
-            rest = far[np.isin(far, probe, assume_unique=True, invert=True)]
-            if rest.size:
-                # distance is 1-Lipschitz: a near probe's value is off by at most the gap to it
-                nearest = cKDTree(query[probe]).query(query[rest], workers=_workers(rest.size))[1]
-                out[rest] = out[probe][nearest]
-        return out
-
-
-def _piece_radius(samples: Samples, kind: str, corners: tuple[NDArray, ...]) -> float:
-    """Largest distance from a sample to a point of the piece of its element it stands for."""
-    if kind == "points" or not len(samples.points):
-        return 0.0
-    count = np.bincount(samples.elements, minlength=len(corners[0]))
-    used = count > 0
-    ends = [c[used] for c in corners]
-    if kind == "segments":  # midpoints of `count` equal pieces
-        return float(np.max(np.linalg.norm(ends[1] - ends[0], axis=1) / count[used]) / 2)
-    # centroids of k² similar triangles: a point of one is within 2/3 of its longest median
-    sq = [np.einsum("ij,ij->i", e, e) for e in (ends[1] - ends[0], ends[2] - ends[1], ends[0] - ends[2])]
-    median2 = np.max([2 * (sq[0] + sq[1] + sq[2]) - 3 * x for x in sq], axis=0) / 4
-    return float(np.max(np.sqrt(median2 / count[used])) * 2 / 3)
-
-
-def _points_target(pts: NDArray, tau: float) -> _Target:
-    n = len(pts)
-    return _Target(Samples(pts, np.ones(n), np.full(n, -1), np.arange(n)), "points", tau=tau)
-
-
-def _within_gaps(ref: _Target, query: NDArray, d_zero: NDArray, tau: float) -> NDArray[np.bool_]:
+def _within_gaps(ref: Target, query: NDArray, d_zero: NDArray, tau: float) -> NDArray[np.bool_]:
     """Zero-set samples within τ of the surface a bare cloud samples: within √(τ² + s²) of
     their nearest data point, s its local spacing (see the module notes)."""
     from .sampling import point_spacing
@@ -284,27 +141,10 @@ def _within_gaps(ref: _Target, query: NDArray, d_zero: NDArray, tau: float) -> N
     reach = math.sqrt(tau**2 + float(spacing.max(initial=0.0)) ** 2)
     maybe = np.flatnonzero(~within)
     if maybe.size and reach > tau:
-        d, nearest = ref.tree.query(query[maybe], distance_upper_bound=reach, workers=_workers(maybe.size))
+        d, nearest = ref.tree.query(query[maybe], distance_upper_bound=reach, workers=query_workers(maybe.size))
         found = np.isfinite(d)
         within[maybe[found]] = d[found] <= np.sqrt(tau**2 + spacing[nearest[found]] ** 2)
     return within
-
-
-def _contour_target(points: NDArray, spacing: float, max_samples: int, tau: float) -> _Target:
-    starts, ends = points[:-1], points[1:]
-    gaps = np.linalg.norm(ends - starts, axis=1)
-    closing = float(np.linalg.norm(points[0] - points[-1]))
-    # Close the loop unless its last gap is far longer than the typical one (an open curve).
-    if closing > 0 and closing <= 10 * float(np.median(gaps)):
-        starts = np.vstack([starts, points[-1:]])
-        ends = np.vstack([ends, points[:1]])
-    return _Target(sample_segments(starts, ends, spacing, max_samples=max_samples), "segments", (starts, ends),
-                   tau=tau)
-
-
-def _mesh_target(vertices: NDArray, faces: NDArray, samples: Samples, tau: float) -> _Target:
-    return _Target(samples, "triangles", (vertices[faces[:, 0]], vertices[faces[:, 1]], vertices[faces[:, 2]]),
-                   tau=tau)
 
 
 def quality(model: ImplicitPolynomial | ZeroSet, points: ArrayLike, *, faces: ArrayLike | None = None,
@@ -419,15 +259,6 @@ _MEASURE_DEFAULTS = dict(faces=None, ordered_contour=False, tau=None, tau_fracti
 _DATA_TARGETS = Recent(4)
 
 
-def _data_target(pts, faces, ordered_contour, spacing, max_samples, tau) -> tuple[_Target, str]:
-    """The shape the data stands for, and its name: the mesh's faces, the contour or the points."""
-    if faces is not None and len(faces):
-        return _mesh_target(pts, faces, sample_triangles(pts, faces, spacing, max_samples=max_samples), tau), "faces"
-    if faces is None and ordered_contour:
-        return _contour_target(pts, spacing, max_samples, tau), "contour"
-    return _points_target(pts, tau), "points"
-
-
 def _measure_now(model, pts, *, faces, ordered_contour, tau, tau_fraction, bounds, margin, resolution, spacing,
                  max_samples):
     """(Quality, spurious flags, zero-set samples, their distances to the shape, τ); ``pts`` checked."""
@@ -460,7 +291,7 @@ def _measure_now(model, pts, *, faces, ordered_contour, tau, tau_fraction, bound
     face_array = None if faces is None else as_faces(faces, len(pts), dim)
     key = (array_key(pts), None if face_array is None else array_key(face_array), bool(ordered_contour), spacing,
            max_samples, tau)
-    ref, reference = _DATA_TARGETS.get(key, lambda: _data_target(pts, face_array, ordered_contour, spacing,
+    ref, reference = _DATA_TARGETS.get(key, lambda: data_target(pts, face_array, ordered_contour, spacing,
                                                                  max_samples, tau))
 
     n_components = zs.n_components
@@ -474,9 +305,9 @@ def _measure_now(model, pts, *, faces, ordered_contour, tau, tau_fraction, bound
     samples = zs.sample(spacing, max_samples=max_samples)
     if dim == 2:
         starts, ends, _ = zs.segments()
-        target = _Target(samples, "segments", (starts, ends), tau=tau)
+        target = Target(samples, "segments", (starts, ends), tau=tau)
     else:
-        target = _mesh_target(zs.vertices, zs.faces, samples, tau)
+        target = mesh_target(zs.vertices, zs.faces, samples, tau)
     d_data = target.distance(pts)
     d_zero = ref.distance(samples.points)
     recall = float(np.mean(d_data <= tau))

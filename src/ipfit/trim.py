@@ -32,9 +32,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ._distance import DEFAULT_MAX_SAMPLES, DEFAULT_TAU_FRACTION, data_target
 from ._validation import as_faces, as_points, check_positive, error
-from .quality import DEFAULT_MAX_SAMPLES, DEFAULT_TAU_FRACTION, _mesh_target, _points_target
-from .zeroset import ZeroSet, sample_triangles
+from .zeroset import ZeroSet
 
 __all__ = ["Trim", "trim_zero_set", "default_trim_distance", "DEFAULT_TRIM_SPACINGS"]
 
@@ -155,11 +155,7 @@ def trim_zero_set(zero_set: ZeroSet, points: ArrayLike, distance: float | None =
         face_array = as_faces(faces, len(pts), 3)
         face_array = face_array if len(face_array) else None
     # The target decides "within distance" exactly (its tolerance); samples only find candidates.
-    if face_array is not None:
-        samples = sample_triangles(pts, face_array, distance, max_samples=DEFAULT_MAX_SAMPLES)
-        target, reference = _mesh_target(pts, face_array, samples, distance), "faces"
-    else:
-        target, reference = _points_target(pts, distance), "points"
+    target, reference = data_target(pts, face_array, False, distance, DEFAULT_MAX_SAMPLES, distance)
     if zero_set.is_empty:
         return replace(zero_set, trim=_record(distance, 0.0, 0.0, 0, reference, zero_set.dim))
     if zero_set.dim == 3:

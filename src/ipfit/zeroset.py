@@ -19,12 +19,13 @@ import math
 import os
 from dataclasses import dataclass
 from functools import cached_property
-from typing import TYPE_CHECKING, NamedTuple, Sequence
+from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from . import basis
+from ._distance import Samples, sample_segments, sample_triangles
 from ._validation import as_points, check_int, check_nonnegative, error
 from .polynomial import ImplicitPolynomial
 
@@ -45,21 +46,6 @@ __all__ = [
 
 DEFAULT_RESOLUTION = {2: 512, 3: 128}
 MAX_GRID_POINTS = 1 << 27  # 1 GiB of float64 values: beyond that the caller surely meant less
-
-
-class Samples(NamedTuple):
-    """Points spread over a curve or surface with quadrature weights.
-
-    ``weights`` are the lengths (2D) or areas (3D) each sample stands for, so weighted means
-    are means over the shape, not over however it happened to be triangulated.
-    ``labels`` are the component index of each sample (-1 when unknown), ``elements``
-    the segment or face it was drawn from.
-    """
-
-    points: NDArray[np.float64]
-    weights: NDArray[np.float64]
-    labels: NDArray[np.int64]
-    elements: NDArray[np.int64] | None = None  # index of the segment / face each sample lies on
 
 
 # -- bounds and grids ------------------------------------------------------------------------
@@ -164,84 +150,6 @@ def grid_values(poly: ImplicitPolynomial, bounds: ArrayLike, resolution) -> NDAr
     b = np.einsum("jb,ibc->ijc", y, a, optimize=True)            # (nx, ny, c)
     out = b.reshape(-1, degree + 1) @ z.T                        # (nx*ny, nz)
     return out.reshape(len(axes[0]), len(axes[1]), len(axes[2]))
-
-
-# -- sampling helpers (shared with ipfit.quality) --------------------------------------------
-
-def _pieces(lengths: NDArray, spacing: float, max_samples: int | None, power: int) -> NDArray[np.int64]:
-    # Pieces per element (segment: k, triangle: k²); coarsen the spacing when over budget.
-    for _ in range(8):
-        ks = np.maximum(1, np.ceil(lengths / spacing)).astype(np.int64)
-        total = int(np.sum(ks ** power))
-        if max_samples is None or total <= max_samples or ks.max() == 1:
-            return ks
-        spacing *= 1.05 * (total / max_samples) ** (1 / power)
-    return ks
-
-
-def sample_segments(starts: NDArray, ends: NDArray, spacing: float,
-                    labels: NDArray | None = None, max_samples: int | None = None) -> Samples:
-    """Midpoints of equal pieces of each segment, at most ``spacing`` long, with their lengths.
-
-    Every point of a segment is within ``spacing / 2`` of a sample. With ``max_samples``,
-    the spacing grows as needed to stay near that count (every segment keeps one sample).
-    """
-    starts = np.asarray(starts, dtype=np.float64)
-    ends = np.asarray(ends, dtype=np.float64)
-    dim = starts.shape[1] if starts.ndim == 2 else 2
-    lengths = np.linalg.norm(ends - starts, axis=1)
-    pieces = _pieces(lengths, spacing, max_samples, 1)
-    owner = np.repeat(np.arange(len(lengths)), pieces)
-    # position of each piece within its segment: 0..pieces-1, without a Python loop
-    first = np.cumsum(pieces) - pieces
-    rank = np.arange(owner.size) - first[owner]
-    t = (rank + 0.5) / pieces[owner]
-    pts = starts[owner] + t[:, None] * (ends[owner] - starts[owner]) if owner.size else np.empty((0, dim))
-    weights = lengths[owner] / pieces[owner]
-    lab = np.full(owner.size, -1, dtype=np.int64) if labels is None else np.asarray(labels)[owner]
-    return Samples(pts, weights, lab, owner)
-
-
-def _subtriangle_centroids(k: int) -> NDArray[np.float64]:
-    # Barycentric (s, t) of the centroids of the k² congruent triangles of a k-subdivision.
-    i, j = np.meshgrid(np.arange(k), np.arange(k), indexing="ij")
-    up = (i + j) <= k - 1
-    down = (i + j) <= k - 2
-    s = np.concatenate([i[up] + 1 / 3, i[down] + 2 / 3]) / k
-    t = np.concatenate([j[up] + 1 / 3, j[down] + 2 / 3]) / k
-    return np.column_stack([s, t])
-
-
-def sample_triangles(vertices: NDArray, faces: NDArray, spacing: float,
-                     labels: NDArray | None = None, max_samples: int | None = None) -> Samples:
-    """Centroids of a regular subdivision of every face, with the area each stands for.
-
-    A face whose longest edge is L is cut into k² congruent triangles, k = ceil(L / spacing),
-    so every point of the surface is within about ``2/3 · spacing`` of a sample, and the
-    weights are exact areas (a midpoint quadrature of the surface). With ``max_samples``,
-    the spacing grows as needed to stay near that count (every face keeps one sample).
-    """
-    v = np.asarray(vertices, dtype=np.float64)
-    f = np.asarray(faces, dtype=np.int64)
-    if f.size == 0:
-        return Samples(np.empty((0, 3)), np.empty(0), np.empty(0, dtype=np.int64), np.empty(0, dtype=np.int64))
-    a, b, c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
-    longest = np.maximum.reduce([np.linalg.norm(b - a, axis=1), np.linalg.norm(c - b, axis=1),
-                                 np.linalg.norm(a - c, axis=1)])
-    areas = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
-    ks = _pieces(longest, spacing, max_samples, 2)
-    lab = np.full(len(f), -1, dtype=np.int64) if labels is None else np.asarray(labels, dtype=np.int64)
-    pts, wts, labs, elems = [], [], [], []
-    for k in np.unique(ks):  # few distinct subdivision levels: vectorised within each
-        sel = np.flatnonzero(ks == k)
-        bary = _subtriangle_centroids(int(k))
-        e1, e2 = b[sel] - a[sel], c[sel] - a[sel]
-        p = a[sel, None, :] + bary[None, :, 0, None] * e1[:, None, :] + bary[None, :, 1, None] * e2[:, None, :]
-        pts.append(p.reshape(-1, 3))
-        wts.append(np.repeat(areas[sel] / (k * k), len(bary)))
-        labs.append(np.repeat(lab[sel], len(bary)))
-        elems.append(np.repeat(sel, len(bary)))
-    return Samples(np.concatenate(pts), np.concatenate(wts), np.concatenate(labs), np.concatenate(elems))
 
 
 # -- the zero set ----------------------------------------------------------------------------

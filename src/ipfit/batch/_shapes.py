@@ -279,9 +279,9 @@ def _fit_task(task: _Task, settings: FitSettings) -> dict:
         if task.data is not None:
             points, normals, faces, path = task.data[0], task.data[1], None, None
         else:
-            from ..cli._common import load_input
+            from ..datasets.loading import load
 
-            data = load_input(task.source)
+            data = load(task.source)
             points, normals, faces = data.points, data.normals, data.faces
             path = task.path
         with np.errstate(all="ignore"):

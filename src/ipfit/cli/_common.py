@@ -1,4 +1,7 @@
-"""Helpers shared by the subcommands: input resolution, option types, signals and all-or-nothing output."""
+"""Helpers shared by the subcommands: option types, signals and all-or-nothing output.
+
+Inputs are read by :func:`ipfit.load` (a file or a bundled dataset's name).
+"""
 
 from __future__ import annotations
 
@@ -10,57 +13,12 @@ import signal
 import sys
 import threading
 from pathlib import Path
-from typing import Callable, Iterator, Mapping, NamedTuple, Sequence
+from typing import Callable, Iterator, Mapping, Sequence
 
 import numpy as np
 
 from .. import _atomic
-from ..exceptions import InvalidInputError, IpfitError, ReadError
-
-
-class Input(NamedTuple):
-    points: np.ndarray
-    normals: np.ndarray | None
-    label: str
-    faces: np.ndarray | None = None
-
-
-def load_input(spec: str, max_points: int | None = None) -> Input:
-    """A path to a point file, or the name of a bundled dataset (``ipfit datasets``).
-
-    ``max_points`` keeps a fixed-seed random subset of a larger file (``--max-points``); the
-    counts read and kept are reported on stderr when it does.
-    """
-    import warnings
-
-    from .. import io
-    from ..datasets import bundled
-
-    path = Path(spec)
-    if path.exists():
-        cloud = io.read_points(path, max_points=max_points)
-        faces = None
-        if cloud.n_kept < cloud.n_file and max_points is not None:
-            print(f"ipfit: {path}: kept {cloud.n_kept:,} of the file's {cloud.n_file:,} points "
-                  f"(--max-points {max_points}, fixed seed)", file=sys.stderr)
-        elif cloud.normals_source in ("faces", "file") or path.suffix.lower() in {".ply", ".obj", ".off", ".stl"}:
-            with warnings.catch_warnings():  # the first read already said what it had to say
-                warnings.simplefilter("ignore")
-                faces = io.read_mesh(path).faces
-        return Input(cloud.points, cloud.normals, path.stem, faces)
-    name = bundled.resolve_name(spec)
-    if name is not None:
-        spec = name
-        points, normals = bundled.load_dataset(spec)
-        if max_points is not None and len(points) > max_points:
-            keep = np.sort(np.random.default_rng(0).choice(len(points), max_points, replace=False))
-            print(f"ipfit: {spec}: kept {max_points:,} of its {len(points):,} points (--max-points, fixed seed)",
-                  file=sys.stderr)
-            return Input(points[keep], normals[keep], spec)
-        return Input(points, normals, spec, bundled.dataset_faces(spec))
-    names = ", ".join(bundled.dataset_names())
-    raise ReadError(f"{spec}: no such file, nor a bundled dataset name ({names}).{bundled.suggestion(spec)} "
-                    "Check the path.")
+from ..exceptions import InvalidInputError, IpfitError
 
 
 def _whole_number_at_least(minimum: int):

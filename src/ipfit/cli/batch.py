@@ -8,7 +8,7 @@ import sys
 import time
 from pathlib import Path
 
-from ._common import cli_names, load_input, positive_int
+from ._common import cli_names, positive_int
 from .fit import _OPTION_NAMES, _parse_degree, add_fit_options, search_settings
 
 NAME = "batch"
@@ -108,6 +108,7 @@ HTML_FILES = ("{name}.html", "{name}.png", "index.html")
 def write_viewers(folder: Path, batch) -> Path:
     """NAME.html and a NAME.png thumbnail per fitted shape, and index.html linking them."""
     from .._atomic import write_text_atomic
+    from ..datasets.loading import load
     from ..exceptions import IpfitError
     from ..plotting import plot_result
     from ..viewer import index_page, write_html
@@ -120,7 +121,7 @@ def write_viewers(folder: Path, batch) -> Path:
         points = None
         source = (result.get("input") or {}).get("path") or row.get("input")
         try:
-            points = load_input(str(source)).points if source else None
+            points = load(str(source)).points if source else None
         except IpfitError:  # generated shapes and moved files: the viewer frames the result without its points
             points = None
         name = row["name"]

@@ -9,8 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ._common import (Outputs, beside, cli_names, default_prefix, finite_float, fit_prefix, load_input,
-                      nonnegative_float, nonnegative_int, positive_int, stop_at_iterations)
+from ._common import (Outputs, beside, cli_names, default_prefix, finite_float, fit_prefix, nonnegative_float,
+                      nonnegative_int, positive_int, stop_at_iterations)
 from ._progress import Progress, progress_mode
 from .mesh import add_trim_argument, trim_for_export
 
@@ -152,12 +152,27 @@ def _parse_degree(text: str, dim: int) -> int | None:
     return value
 
 
+def _report_kept(data, max_points: int | None) -> None:
+    """One stderr line when --max-points dropped points: the loader only records the counts."""
+    if max_points is None or len(data) >= data.n_file:
+        return
+    if isinstance(data.source, Path):
+        print(f"ipfit: {data.source}: kept {len(data):,} of the file's {data.n_file:,} points "
+              f"(--max-points {max_points}, fixed seed)", file=sys.stderr)
+    else:
+        print(f"ipfit: {data.source}: kept {len(data):,} of its {data.n_file:,} points (--max-points, fixed seed)",
+              file=sys.stderr)
+
+
 def run(args: argparse.Namespace) -> int:
     from .. import basis
     from ..adaptive import fit_adaptive
     from ..exceptions import InvalidInputError
 
-    data = load_input(args.input, max_points=args.max_points)
+    from ..datasets.loading import load
+
+    data = load(args.input, max_points=args.max_points)
+    _report_kept(data, args.max_points)
     points, normals = data.points, data.normals
     dim = points.shape[1]
     degree = _parse_degree(args.degree, dim)
@@ -168,7 +183,7 @@ def run(args: argparse.Namespace) -> int:
         raise InvalidInputError(f"--normals file: {args.input} has no normals. Use --normals estimate.")
     if args.trim is not None and args.no_zero_set:
         raise InvalidInputError("--trim: it trims the exported zero set, which --no-zero-set skips. Drop one of them.")
-    prefix, outputs = _plan_outputs(args, data.label, dim)
+    prefix, outputs = _plan_outputs(args, data.name, dim)
     source = "file"
     if normals is None or args.normals == "estimate":
         from ..normals import estimate_normals

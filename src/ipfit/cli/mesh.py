@@ -117,10 +117,10 @@ def check_output_suffix(path: str, dim: int) -> None:
 
 
 def _recorded_input(view):
-    """The data recorded in a result: (Input, None) or (None, why it could not be used)."""
+    """The data recorded in a result: (Cloud, None) or (None, why it could not be used)."""
     from ..datasets import dataset_names
     from ..exceptions import InvalidInputError
-    from ._common import load_input
+    from ..datasets.loading import load
 
     record = view.input
     path, source = record.get("path"), record.get("source")
@@ -137,7 +137,7 @@ def _recorded_input(view):
             reasons.append(f"{spec} does not exist" + ("" if Path(spec).is_absolute() else " (here)"))
             continue
         try:
-            data = load_input(spec)
+            data = load(spec)
         except InvalidInputError as exc:
             reasons.append(str(exc).rstrip("."))
             continue
@@ -163,7 +163,7 @@ def load_points(spec: str | None, view, command: str, *, required: bool = False,
     """
     from .._result_schema import check_coordinates
     from ..exceptions import InvalidInputError
-    from ._common import load_input
+    from ..datasets.loading import load
 
     if spec is None:
         data, why = _recorded_input(view)
@@ -174,7 +174,7 @@ def load_points(spec: str | None, view, command: str, *, required: bool = False,
                 warn(command, f"{why}; {missing}. Pass the data with --points DATA.")
             return None, None
     else:
-        data = load_input(spec)
+        data = load(spec)
         if data.points.shape[1] != view.dim:
             raise InvalidInputError(f"--points: expected {view.dim}D points to match the result, got "
                                     f"{data.points.shape[1]}D in {spec}. Pass the data the result was fitted to.")

@@ -45,27 +45,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--ascii", action="store_true", help="write an ASCII PLY instead of a binary one")
 
 
+# How the normals' origin (Cloud.normals_source) is named in the report.
+_SOURCES = {"file": "the file", "contour": "the traced boundary", "faces": "the faces (area-weighted)"}
+
+
 def _load(spec: str):
     """(points, reference normals or None, where they come from, label, faces or None)."""
-    from .. import io
-    from ..datasets import bundled
-    from ..exceptions import ReadError
+    from ..datasets.loading import load
 
-    path = Path(spec)
-    if not path.exists() and spec in bundled.dataset_names():
-        points, normals = bundled.load_dataset(spec)
-        return points, normals, f"the bundled '{spec}' reference", spec, bundled.dataset_faces(spec)
-    if path.exists() or path.suffix:  # a path: the reader reports a missing file clearly
-        mesh = io.read_mesh(path)
-        if mesh.normals is not None:
-            traced = path.suffix.lower() in io._IMAGE_SUFFIXES
-            return mesh.points, mesh.normals, "the traced boundary" if traced else "the file", str(path), mesh.faces
-        if mesh.faces is not None and mesh.points.shape[1] == 3:
-            normals = io._complete(mesh.points, io.vertex_normals_from_faces(mesh.points, mesh.faces))
-            return mesh.points, normals, "the faces (area-weighted)", str(path), mesh.faces
-        return mesh.points, None, None, str(path), mesh.faces
-    names = ", ".join(bundled.dataset_names())
-    raise ReadError(f"{spec}: no such file, nor a bundled dataset name ({names}). Check the path.")
+    cloud = load(spec)
+    if not isinstance(cloud.source, Path):
+        return cloud.points, cloud.normals, f"the bundled '{cloud.name}' reference", cloud.name, cloud.faces
+    return cloud.points, cloud.normals, _SOURCES.get(cloud.normals_source), str(cloud.source), cloud.faces
 
 
 def run(args: argparse.Namespace) -> int:

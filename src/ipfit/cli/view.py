@@ -49,7 +49,8 @@ def run(args: argparse.Namespace) -> int:
     from .._result_schema import check_coordinates
     from ..results import result_view
     from ..viewer import MAX_FACES, write_html
-    from ._common import Outputs, load_input, recorded_sources
+    from ..datasets.loading import load
+    from ._common import Outputs, recorded_sources
 
     check_trim_with_points(args)
     view = result_view(args.result)
@@ -62,7 +63,7 @@ def run(args: argparse.Namespace) -> int:
     spec = args.points or (None if args.no_points else recorded)
     if spec is not None:
         try:
-            found = load_input(spec)
+            found = load(spec)
         except InvalidInputError:
             if args.points:
                 raise

@@ -107,9 +107,12 @@ def dataset_path(name: str) -> Path:
 
 
 def load_dataset(name: str) -> PointCloud:
-    """``(points, normals)`` of a bundled dataset (fresh copies: safe to modify); names ignore case."""
-    points, normals, _ = _load(name)
-    return PointCloud(points.copy(), normals.copy())
+    """``(points, normals)`` of a bundled dataset (fresh copies: safe to modify); names ignore case.
+
+    Its ``normals_source`` says where the normals come from: "contour", "file" or "faces".
+    """
+    points, normals, _, source = _load(name)
+    return PointCloud(points.copy(), normals.copy(), source)
 
 
 def dataset_faces(name: str) -> NDArray[np.int64] | None:
@@ -126,12 +129,12 @@ def _load(name: str):
         from ..normals import contour_normals
 
         points = read_points(path).points
-        return points, contour_normals(points, span=CONTOUR_SPAN), None
+        return points, contour_normals(points, span=CONTOUR_SPAN), None, "contour"
     mesh = read_mesh(path)
     if entry.normals == "file" and mesh.normals is not None:
-        normals = mesh.normals
+        normals, source = mesh.normals, "file"
     else:
-        normals = fill_missing_normals(mesh.points, vertex_normals_from_faces(mesh.points, mesh.faces))
+        normals, source = fill_missing_normals(mesh.points, vertex_normals_from_faces(mesh.points, mesh.faces)), "faces"
     for arr in (mesh.points, normals, mesh.faces):
         arr.setflags(write=False)
-    return mesh.points, normals, mesh.faces
+    return mesh.points, normals, mesh.faces, source

@@ -23,7 +23,6 @@ from .writers import WRITE_FORMATS, write_points
 
 # the pre-package names, still used by callers outside this package
 _complete = fill_missing_normals
-_IMAGE_SUFFIXES = IMAGE_SUFFIXES
 
 __all__ = [
     "PointCloud",

@@ -35,7 +35,7 @@ from .scanners import read_e57, read_las, read_pcd
 from .silhouettes import IMAGE_SUFFIXES, read_image
 from .tables import read_npy, read_npz, read_text
 
-__all__ = ["PointCloud", "Mesh", "Format", "FORMATS", "READ_FORMATS", "read_points", "read_mesh"]
+__all__ = ["PointCloud", "Mesh", "Format", "FORMATS", "READ_FORMATS", "read_points", "read_points_faces", "read_mesh"]
 
 
 class _Pair(NamedTuple):
@@ -181,6 +181,16 @@ def read_points(path: str | os.PathLike, *, merge: bool = True, face_normals: bo
     >>> cloud.points.shape, cloud.n_file, cloud.n_kept, cloud.normals_source
     ((3, 2), 4, 3, None)
     """
+    return read_points_faces(path, merge=merge, face_normals=face_normals, max_points=max_points, rng=rng)[0]
+
+
+def read_points_faces(path: str | os.PathLike, *, merge: bool = True, face_normals: bool = True,
+                      max_points: int | None = None, rng=0) -> tuple[PointCloud, NDArray[np.int64] | None]:
+    """:func:`read_points` and the file's faces (as :func:`read_mesh` gives them), from one read.
+
+    The faces index the returned points; they are None when the file has none and when
+    ``max_points`` dropped points (the faces index the points before the draw).
+    """
     path = as_path(path)
     if max_points is not None:
         max_points = check_int(max_points, "max_points", minimum=MIN_POINTS)
@@ -193,11 +203,11 @@ def read_points(path: str | os.PathLike, *, merge: bool = True, face_normals: bo
     normals, source = mesh.normals, data.normals_source
     if normals is None and face_normals and mesh.faces is not None and mesh.points.shape[1] == 3:
         normals, source = fill_missing_normals(mesh.points, vertex_normals_from_faces(mesh.points, mesh.faces)), "faces"
-    points = mesh.points
+    points, faces = mesh.points, mesh.faces
     if max_points is not None and len(points) > max_points:
         keep = np.sort(generator.choice(len(points), max_points, replace=False))
-        points, normals = points[keep], None if normals is None else normals[keep]
-    return PointCloud(points, normals, source, n_file)
+        points, normals, faces = points[keep], None if normals is None else normals[keep], None
+    return PointCloud(points, normals, source, n_file), faces
 
 
 def read_mesh(path: str | os.PathLike, *, merge: bool = True) -> Mesh:

@@ -1,0 +1,190 @@
+"""The package's import graph, read from the source with ``ast``: no library module imports the
+command line, and no import cycle beyond the known ones (a list that may only shrink).
+
+Module-level imports run when a module is imported: a cycle among them makes the import order
+matter and the layers meaningless. Imports inside functions (lazy: numba kernels, the viewer,
+optional libraries) run later; they count for the rule on ``ipfit.cli`` (the library must not
+depend on the command line at all) and are reported separately for cycles.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+SRC = Path(__file__).resolve().parents[1] / "src"
+PACKAGE = "ipfit"
+
+# Cycles among module-level imports that exist today (none), each the set of modules of one strongly
+# connected component. Removing a cycle means deleting its line here; adding one is not allowed.
+KNOWN_CYCLES: tuple[frozenset[str], ...] = ()
+
+# Cycles through imports made inside functions, each a lazy call upward; the same rule: it may
+# only shrink.
+KNOWN_LAZY_CYCLES: tuple[frozenset[str], ...] = (
+    # ZeroSet.trimmed() calls trim.trim_zero_set, which takes a ZeroSet: a method for convenience
+    frozenset({"ipfit.zeroset", "ipfit.trim"}),
+)
+
+
+def _module_name(path: Path) -> str:
+    parts = list(path.relative_to(SRC).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts.pop()
+    return ".".join(parts)
+
+
+def _modules() -> dict[str, Path]:
+    return {_module_name(path): path for path in sorted((SRC / PACKAGE).rglob("*.py"))}
+
+
+def _type_checking(node: ast.If) -> bool:
+    test = node.test
+    return (isinstance(test, ast.Name) and test.id == "TYPE_CHECKING") or (
+        isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING")
+
+
+def _imports(tree: ast.Module, top_level: bool) -> list[ast.Import | ast.ImportFrom]:
+    """Import statements that run: at import time (``top_level``: not in a function), or at
+    any time. Imports under ``if TYPE_CHECKING`` never run (annotations only)."""
+    found = []
+
+    def visit(node: ast.AST) -> None:
+        for child in ast.iter_child_nodes(node):
+            if top_level and isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda)):
+                continue
+            if isinstance(child, ast.If) and _type_checking(child):
+                for stmt in child.orelse:
+                    visit(ast.Module(body=[stmt], type_ignores=[]))
+                continue
+            if isinstance(child, (ast.Import, ast.ImportFrom)):
+                found.append(child)
+            visit(child)
+
+    visit(tree)
+    return found
+
+
+def _targets(module: str, node: ast.Import | ast.ImportFrom, modules: dict[str, Path]) -> set[str]:
+    """The package's modules an import statement of ``module`` executes (besides its own
+    parent packages, which are always initialised first)."""
+    is_package = modules[module].name == "__init__.py"
+    if isinstance(node, ast.Import):
+        names = [alias.name for alias in node.names]
+    else:
+        if node.level:
+            base = module.split(".") if is_package else module.split(".")[:-1]
+            base = base[:len(base) - (node.level - 1)]
+            origin = ".".join(base + ([node.module] if node.module else []))
+        else:
+            origin = node.module or ""
+        names = [origin] + [f"{origin}.{alias.name}" for alias in node.names]
+    out = set()
+    for name in names:
+        while name and name not in modules:  # ipfit.io.read_points -> ipfit.io
+            name = name.rpartition(".")[0]
+        if name.startswith(PACKAGE) and not module.startswith(name + ".") and name != module:
+            out.add(name)
+    return out
+
+
+def import_graph(top_level: bool) -> dict[str, set[str]]:
+    """Module -> the package's modules it imports (``top_level``: at import time only)."""
+    modules = _modules()
+    graph = {}
+    for module, path in modules.items():
+        tree = ast.parse(path.read_text(encoding="utf-8"), str(path))
+        graph[module] = set().union(*(_targets(module, node, modules) for node in _imports(tree, top_level)))
+    return graph
+
+
+def cycles(graph: dict[str, set[str]]) -> list[frozenset[str]]:
+    """Strongly connected components of more than one module (Tarjan's algorithm)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    found = []
+
+    def connect(node: str) -> None:
+        index[node] = low[node] = len(index)
+        stack.append(node)
+        on_stack.add(node)
+        for nxt in sorted(graph.get(node, ())):
+            if nxt not in index:
+                connect(nxt)
+                low[node] = min(low[node], low[nxt])
+            elif nxt in on_stack:
+                low[node] = min(low[node], index[nxt])
+        if low[node] == index[node]:
+            component = set()
+            while True:
+                top = stack.pop()
+                on_stack.discard(top)
+                component.add(top)
+                if top == node:
+                    break
+            if len(component) > 1:
+                found.append(frozenset(component))
+
+    for node in sorted(graph):
+        if node not in index:
+            connect(node)
+    return found
+
+
+def _show(component: frozenset[str]) -> str:
+    return "{" + ", ".join(sorted(component)) + "}"
+
+
+@pytest.fixture(scope="module")
+def module_graph():
+    return import_graph(top_level=True)
+
+
+@pytest.fixture(scope="module")
+def full_graph():
+    return import_graph(top_level=False)
+
+
+def test_the_graph_sees_the_imports_it_must(module_graph, full_graph):
+    # the walker itself: relative, absolute, package and submodule imports, lazy ones apart
+    assert "ipfit._distance" in module_graph["ipfit.quality"]
+    assert "ipfit.zeroset" in module_graph["ipfit.trim"]
+    assert "ipfit.datasets.loading" in module_graph["ipfit.datasets"]
+    assert "ipfit.trim" not in module_graph["ipfit.zeroset"]  # in a function and under TYPE_CHECKING
+    assert "ipfit.trim" in full_graph["ipfit.zeroset"]
+    assert "ipfit.adaptive" not in full_graph["ipfit.repair"]  # under TYPE_CHECKING only
+    assert cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [frozenset("abc")]
+
+
+def test_no_library_module_imports_the_command_line(full_graph):
+    outside = {module: sorted(t for t in targets if t == "ipfit.cli" or t.startswith("ipfit.cli."))
+               for module, targets in full_graph.items() if not module.startswith("ipfit.cli")}
+    assert {module: found for module, found in outside.items() if found} == {}
+
+
+def test_no_new_import_cycle(module_graph):
+    new = [c for c in cycles(module_graph) if not any(c <= known for known in KNOWN_CYCLES)]
+    assert not new, "import cycles among module-level imports: " + "; ".join(map(_show, new))
+
+
+def test_known_cycles_still_exist(module_graph, full_graph):
+    # the exception lists only shrink: a cycle that was broken leaves them
+    stale = [known for known in KNOWN_CYCLES if not any(known <= c for c in cycles(module_graph))]
+    stale += [known for known in KNOWN_LAZY_CYCLES if not any(known <= c for c in cycles(full_graph))]
+    assert not stale, "no longer cycles, remove from KNOWN_CYCLES / KNOWN_LAZY_CYCLES: " + "; ".join(map(_show, stale))
+
+
+def test_no_new_lazy_import_cycle(full_graph):
+    new = [c for c in cycles(full_graph) if not any(c <= known for known in KNOWN_CYCLES + KNOWN_LAZY_CYCLES)]
+    assert not new, "import cycles through imports inside functions: " + "; ".join(map(_show, new))
+
+
+def test_quality_zeroset_trim_form_no_cycle(module_graph, full_graph):
+    measured = {"ipfit.quality", "ipfit.zeroset", "ipfit.trim", "ipfit._distance"}
+    assert not [c for c in cycles(module_graph) if c & measured]
+    # quality and the distance engine sit above zeroset and trim even counting lazy imports
+    assert not [c for c in cycles(full_graph) if c & {"ipfit.quality", "ipfit._distance"}]
