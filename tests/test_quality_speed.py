@@ -228,10 +228,11 @@ def test_threads_and_caches_do_not_change_a_measurement(monkeypatch):
     wobbly = synthetic.from_terms(3, 4, {(2, 0, 0): 1 / 1.1 ** 2, (0, 2, 0): 1.0, (0, 0, 2): 1 / 0.9 ** 2,
                                          (2, 2, 0): 0.3, (0, 0, 0): -1.0})
     details = qmod._measure(wobbly, pts, faces=faces, details=True)
-    assert len(details[2].points) > qmod._THREADED_QUERIES
+    engine = importlib.import_module("ipfit._distance")
+    assert len(details[2].points) > engine._THREADED_QUERIES
     threaded = quality(wobbly, pts, faces=faces).to_dict()
     forget_all()
-    monkeypatch.setattr(qmod, "_THREADED_QUERIES", 10**12)
+    monkeypatch.setattr(engine, "_THREADED_QUERIES", 10**12)
     assert quality(wobbly, pts, faces=faces).to_dict() == threaded
     bare = quality(wobbly, pts)
     assert bare.reference == "points" and threaded["reference"] == "faces"
