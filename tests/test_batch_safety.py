@@ -220,6 +220,30 @@ def test_ctrl_c_is_quiet_keeps_finished_results_and_stops_the_workers(tmp_path, 
     assert not _alive(workers)
 
 
+def test_ctrl_c_while_the_cluster_starts_is_held_not_lost(tmp_path):
+    """The cluster starts with SIGINT blocked (its workers must not die of it): a Ctrl-C then
+    waits and stops the batch once the cluster is up, exit 130, quietly; it is never dropped."""
+    psutil = pytest.importorskip("psutil")
+    out = tmp_path / "out"
+    cmd = [sys.executable, "-m", "ipfit.cli", "batch", "generated:40", "-o", str(out), "--workers", "2",
+           "--max-degree", "6", "--iterations", "300"]
+    proc = subprocess.Popen(cmd, env=_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+    deadline = time.monotonic() + 120
+    while not psutil.Process(proc.pid).children() and time.monotonic() < deadline and proc.poll() is None:
+        time.sleep(0.02)  # the first worker process exists: the cluster is starting
+    children = [c.pid for c in psutil.Process(proc.pid).children(recursive=True)]
+    os.killpg(proc.pid, signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err and "Exception ignored" not in err and "KeyboardInterrupt" not in err, err
+    assert len(list(out.glob("[!.]*.json"))) < 40  # stopped early, not after all forty shapes
+    deadline = time.monotonic() + 10
+    while _alive(children) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert not _alive(children)
+
+
 # -- a core install --------------------------------------------------------------------------------------
 BLOCK_DASK = """
 import sys
