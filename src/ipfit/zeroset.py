@@ -17,9 +17,10 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import cached_property
-from typing import TYPE_CHECKING, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -108,7 +109,7 @@ def grid_axes(bounds: ArrayLike, resolution) -> list[NDArray[np.float64]]:
     arr = np.asarray(bounds, dtype=np.float64)
     shape = _resolution_per_axis(resolution, arr.shape[0])
     arr = _as_bounds(arr, len(shape))
-    return [np.linspace(lo, hi, n) for (lo, hi), n in zip(arr, shape)]
+    return [np.linspace(lo, hi, n) for (lo, hi), n in zip(arr, shape, strict=True)]
 
 
 def grid_values(poly: ImplicitPolynomial, bounds: ArrayLike, resolution) -> NDArray[np.float64]:
@@ -137,7 +138,8 @@ def grid_values(poly: ImplicitPolynomial, bounds: ArrayLike, resolution) -> NDAr
     dim, degree = poly.dim, poly.degree
     axes = grid_axes(_as_bounds(bounds, dim), resolution)
     norm = poly.normalization
-    tables = [basis.power_table(((ax - c) / norm.scale)[:, None], degree)[:, 0] for ax, c in zip(axes, norm.center)]
+    tables = [basis.power_table(((ax - c) / norm.scale)[:, None], degree)[:, 0]
+              for ax, c in zip(axes, norm.center, strict=True)]
     dense = np.zeros((degree + 1,) * dim)
     dense[tuple(poly.exponents.T)] = poly.coefficients
     if dim == 2:
@@ -323,7 +325,8 @@ class ZeroSet:
         what = (f"curves={len(self.curves)}" if self.dim == 2 else
                 f"vertices={0 if self.vertices is None else len(self.vertices)}, "
                 f"faces={0 if self.faces is None else len(self.faces)}")
-        return f"ZeroSet(dim={self.dim}, {what}, components={self.n_components}, closed={self.closed}, step={self.step:.4g})"
+        return (f"ZeroSet(dim={self.dim}, {what}, components={self.n_components}, closed={self.closed}, "
+                f"step={self.step:.4g})")
 
 
 def _boundary_has_zero(values: NDArray) -> bool:
