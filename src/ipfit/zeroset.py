@@ -80,8 +80,8 @@ def data_bounds(points: ArrayLike, margin: float = 0.25) -> NDArray[np.float64]:
     if longest == 0:
         longest = max(1.0, float(np.abs(lo).max()))  # one repeated point: any sensible box
     pad = margin * longest if margin > 0 else 0.0
-    pad = np.where(hi - lo > 0, pad, max(pad, 0.5 * longest))
-    return np.column_stack([lo - pad, hi + pad])
+    pads = np.where(hi - lo > 0, pad, max(pad, 0.5 * longest))  # per axis: a flat axis gets half the longest
+    return np.column_stack([lo - pads, hi + pads])
 
 
 def default_bounds(poly: ImplicitPolynomial, margin: float) -> NDArray[np.float64]:
@@ -219,8 +219,8 @@ class ZeroSet:
         from scipy.sparse import coo_matrix
         from scipy.sparse.csgraph import connected_components
 
-        f = self.faces
-        n = len(self.vertices)
+        vertices, f = self._mesh()
+        n = len(vertices)
         rows = np.concatenate([f[:, 0], f[:, 1], f[:, 2]])
         cols = np.concatenate([f[:, 1], f[:, 2], f[:, 0]])
         graph = coo_matrix((np.ones(rows.size, dtype=np.int8), (rows, cols)), shape=(n, n))
@@ -238,9 +238,9 @@ class ZeroSet:
         out = np.zeros(self.n_components, dtype=bool)
         if self.is_empty:
             return out
-        f = self.faces
+        vertices, f = self._mesh()
         edges = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
-        codes = edges[:, 0] * np.int64(len(self.vertices)) + edges[:, 1]
+        codes = edges[:, 0] * np.int64(len(vertices)) + edges[:, 1]
         _, inverse, counts = np.unique(codes, return_inverse=True, return_counts=True)
         border = counts[inverse] == 1
         out[self.component_labels[np.tile(np.arange(len(f)), 3)[border]]] = True
@@ -256,12 +256,15 @@ class ZeroSet:
         """The pieces: 2D a list of polylines; 3D a list of ``(vertices, faces)`` meshes."""
         if self.dim == 2:
             return list(self.curves)
+        if self.is_empty:
+            return []
         out = []
         labels = self.component_labels
+        vertices, faces = self._mesh()
         for c in range(self.n_components):
-            f = self.faces[labels == c]
+            f = faces[labels == c]
             used, inverse = np.unique(f, return_inverse=True)
-            out.append((self.vertices[used], inverse.reshape(f.shape)))
+            out.append((vertices[used], inverse.reshape(f.shape)))
         return out
 
     @property
@@ -271,8 +274,15 @@ class ZeroSet:
             return 0.0
         if self.dim == 2:
             return float(sum(np.linalg.norm(np.diff(c, axis=0), axis=1).sum() for c in self.curves))
-        v, f = self.vertices, self.faces
+        v, f = self._mesh()
         return float(0.5 * np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]), axis=1).sum())
+
+    def _mesh(self) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+        """3D, not empty: ``(vertices, faces)``, which such a zero set always has (the fields are
+        optional only because a 2D zero set has neither)."""
+        if self.vertices is None or self.faces is None:
+            raise ValueError("ZeroSet: a 2D or empty zero set has no mesh")  # a bug of ipfit's, not an input error
+        return self.vertices, self.faces
 
     # -- sampling -----------------------------------------------------------------------
     def segments(self) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]]:
@@ -296,7 +306,7 @@ class ZeroSet:
         if self.dim == 2:
             starts, ends, labels = self.segments()
             return sample_segments(starts, ends, spacing, labels, max_samples)
-        return sample_triangles(self.vertices, self.faces, spacing, self.component_labels, max_samples)
+        return sample_triangles(*self._mesh(), spacing, self.component_labels, max_samples)
 
     def trimmed(self, points: ArrayLike, distance: float | None = None, *, faces: ArrayLike | None = None) -> ZeroSet:
         """The parts within ``distance`` of the data ``points`` (and their ``faces``), as a new
