@@ -6,7 +6,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.ipfit-installed
 DEMO_OUT ?= demo-output
 
-.PHONY: demo test test-slow test-all bench bench-pipeline reproduce clean
+.PHONY: demo lint test test-slow test-all bench bench-pipeline reproduce clean
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -17,6 +17,12 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)
 	$(BIN)/ipfit fit boot --output $(DEMO_OUT)/boot
 	@echo "Outputs written to $(DEMO_OUT)/"
+
+# ruff, mypy and the import-layer contract (.importlinter): configured in pyproject.toml; run by CI before the tests
+lint: $(STAMP)
+	$(BIN)/ruff check src/ipfit
+	$(BIN)/mypy
+	$(BIN)/lint-imports
 
 test: $(STAMP)
 	$(BIN)/python -m pytest
@@ -43,4 +49,4 @@ reproduce: $(STAMP)
 	$(BIN)/ipfit reproduce -o docs/reproduction
 
 clean:
-	rm -rf $(VENV) $(DEMO_OUT) .pytest_cache
+	rm -rf $(VENV) $(DEMO_OUT) .pytest_cache .mypy_cache .ruff_cache .import_linter_cache

@@ -34,8 +34,8 @@ import stat
 import tempfile
 import threading
 import time
+from collections.abc import Iterator, Sequence
 from pathlib import Path
-from typing import Iterator, Sequence
 
 try:
     import fcntl
@@ -370,7 +370,8 @@ def _temporary(target: Path, suffix: str | None) -> Path:
     if not ancestor.is_dir():  # a file where a folder is needed
         raise NotADirectoryError(errno.ENOTDIR, os.strerror(errno.ENOTDIR), str(ancestor))
     if not directory.is_dir():
-        raise InvalidInputError(f"{target}: the folder {directory} does not exist. Create it first or choose another path.")
+        raise InvalidInputError(f"{target}: the folder {directory} does not exist. "
+                                "Create it first or choose another path.")
     refuse_special(target)
     ident = _hold(target)
     ext = suffix if suffix is not None else target.suffix

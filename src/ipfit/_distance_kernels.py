@@ -12,10 +12,12 @@ projection onto its plane when it falls inside, else the nearest point of its th
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from numba import njit
 
-_JIT = dict(cache=True, nogil=True, error_model="numpy", boundscheck=False)
+_JIT: dict[str, Any] = dict(cache=True, nogil=True, error_model="numpy", boundscheck=False)
 
 
 @njit(**_JIT)

@@ -14,12 +14,14 @@ both cores without either runtime waiting for the other.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from numba import njit
 
 # error_model="numpy": division follows IEEE rules instead of raising, which lets LLVM
 # vectorise the inner loop (no per-element zero checks).
-_JIT = dict(cache=True, nogil=True, error_model="numpy", boundscheck=False)
+_JIT: dict[str, Any] = dict(cache=True, nogil=True, error_model="numpy", boundscheck=False)
 
 
 @njit(**_JIT)

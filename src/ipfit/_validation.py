@@ -62,7 +62,8 @@ _AS_NUMBERS = "Pass the coordinates as numbers (e.g. converted with .astype(floa
 _REFUSED_KINDS = {"b": ("booleans", "Pass coordinates, not a mask: e.g. points[mask]."),
                   "c": ("complex numbers", "Pass the real parts (or np.abs) explicitly."),
                   "O": ("Python objects", _AS_NUMBERS), "U": ("text", _AS_NUMBERS), "S": ("bytes", _AS_NUMBERS),
-                  "M": ("dates", _AS_NUMBERS), "m": ("durations", _AS_NUMBERS), "V": ("structured records", _AS_NUMBERS)}
+                  "M": ("dates", _AS_NUMBERS), "m": ("durations", _AS_NUMBERS),
+                  "V": ("structured records", _AS_NUMBERS)}
 
 
 def as_points(points: ArrayLike, name: str = "points", *, dims=(2, 3), min_points: int = 1) -> NDArray[np.float64]:
@@ -152,7 +153,7 @@ def _frame_coordinates(frame: Any, name: str) -> NDArray[np.float64]:
         raise error(name, needed, f"{len(labels[twice[0]])} columns named {twice[0]} (in some case)",
                     "Keep one column per coordinate.")
     columns = [frame[labels[axis][0]] for axis in wanted]
-    for axis, column in zip(wanted, columns):
+    for axis, column in zip(wanted, columns, strict=True):
         if getattr(column.dtype, "kind", "O") not in "iuf":  # pandas' nullable dtypes have a kind too
             raise error(name, f"numeric columns {', '.join(wanted)}", f"column {axis} of dtype {column.dtype}",
                         "Convert it, e.g. with pandas.to_numeric.")
@@ -264,7 +265,7 @@ def check_rng(rng: Any) -> np.random.Generator:
     """SPEC 7: ``None``, an int seed, a SeedSequence or a Generator."""
     if isinstance(rng, np.random.Generator):
         return rng
-    if rng is None or isinstance(rng, (numbers.Integral, np.random.SeedSequence)) and not isinstance(rng, bool):
+    if rng is None or (isinstance(rng, (numbers.Integral, np.random.SeedSequence)) and not isinstance(rng, bool)):
         try:
             return np.random.default_rng(rng)
         except ValueError:

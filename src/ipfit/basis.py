@@ -234,7 +234,7 @@ def blocked_products(points: NDArray, degree: int, fn, rows: int = 1 << 15):
         if total is None:
             total = part
         elif isinstance(part, tuple):
-            total = tuple(t + p for t, p in zip(total, part))
+            total = tuple(t + p for t, p in zip(total, part, strict=True))
         else:
             total = total + part
     return total

@@ -25,9 +25,10 @@ The measures and the polish are not chunked (they are per-shape refinements).
 from __future__ import annotations
 
 import os
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Iterable
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -129,7 +130,7 @@ class _Chunks:
         (Dask would otherwise read chunks ahead of the tasks that consume them)."""
         import dask
 
-        pairs = list(zip(self.points.to_delayed().ravel(), self.normals.to_delayed().ravel(), self.starts))
+        pairs = list(zip(self.points.to_delayed().ravel(), self.normals.to_delayed().ravel(), self.starts, strict=True))
         out: list = []
         for wave in range(0, len(pairs), self.in_flight):
             out += dask.compute(*(dask.delayed(func)(p, n, int(start)) for p, n, start in
@@ -209,8 +210,8 @@ def fit_chunked(points, normals, degree: int, method: str = "3l", *, chunk_rows:
     >>> from ipfit import fit_3l
     >>> from ipfit.datasets.synthetic import torus
     >>> shape = torus(3000)
-    >>> chunked = fit_chunked(da.from_array(shape.points, chunks=(700, 3)), da.from_array(shape.normals, chunks=(700, 3)),
-    ...                       4, "3l", scheduler="sync")
+    >>> chunked = fit_chunked(da.from_array(shape.points, chunks=(700, 3)),
+    ...                       da.from_array(shape.normals, chunks=(700, 3)), 4, "3l", scheduler="sync")
     >>> bool(np.allclose(chunked.coefficients, fit_3l(shape.points, shape.normals, 4).coefficients, rtol=1e-10))
     True
     """

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
-from typing import Optional, Union
 
 import numpy as np
 from numpy.typing import NDArray
@@ -67,12 +66,12 @@ class Cloud:
     """
 
     points: NDArray[np.float64]
-    normals: Optional[NDArray[np.float64]] = None
-    faces: Optional[NDArray[np.int64]] = None
+    normals: NDArray[np.float64] | None = None
+    faces: NDArray[np.int64] | None = None
     name: str = "points"
-    source: Union[os.PathLike, str, None] = None
-    n_file: Optional[int] = None
-    normals_source: Optional[str] = None
+    source: os.PathLike | str | None = None
+    n_file: int | None = None
+    normals_source: str | None = None
 
     def __post_init__(self) -> None:
         points = as_points(self.points)
@@ -81,7 +80,8 @@ class Cloud:
         n_file = len(points) if self.n_file is None else check_int(self.n_file, "n_file", minimum=len(points))
         source = None if normals is None else (self.normals_source or "file")
         # frozen: the checked values replace the given ones once, here
-        for key, value in (("points", _read_only(points)), ("normals", None if normals is None else _read_only(normals)),
+        for key, value in (("points", _read_only(points)),
+                           ("normals", None if normals is None else _read_only(normals)),
                            ("faces", None if faces is None else _read_only(faces)), ("name", str(self.name)),
                            ("n_file", n_file), ("normals_source", source)):
             object.__setattr__(self, key, value)

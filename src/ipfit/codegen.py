@@ -29,7 +29,7 @@ compared with f itself.
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 
@@ -79,7 +79,7 @@ def _wrap(expr: str) -> str:
 
 
 def _terms(exponents, coefficients) -> dict[tuple[int, ...], float]:
-    return {tuple(e): float(c) for e, c in zip(exponents.tolist(), coefficients)}
+    return {tuple(e): float(c) for e, c in zip(exponents.tolist(), coefficients, strict=True)}
 
 
 def _gradient_terms(poly) -> list[dict[tuple[int, ...], float]]:
@@ -129,7 +129,8 @@ def _c_like(poly, scalar: str, number: Callable[[float], str], const: str) -> tu
     dim = poly.dim
     params = ", ".join(f"{scalar} {n}" for n in _INPUTS[:dim])
     setup = [f"    {const}{scalar} s = {number(float(poly.scale))};"] + [
-        f"    {const}{scalar} {_NORMALISED[j]} = ({_INPUTS[j]} - {number(float(poly.center[j]))}) / s;" for j in range(dim)]
+        f"    {const}{scalar} {_NORMALISED[j]} = ({_INPUTS[j]} - {number(float(poly.center[j]))}) / s;"
+        for j in range(dim)]
     grads = [horner(t, _NORMALISED[:dim], number) for t in _gradient_terms(poly)]
     return setup, grads, params
 
@@ -187,7 +188,7 @@ def _latex_number(value: float) -> str:
 
 def _latex_monomial(e) -> str:
     parts = []
-    for var, k in zip(_NORMALISED, e):
+    for var, k in zip(_NORMALISED, e, strict=False):  # u, v, w: only the first dim are used
         if k == 1:
             parts.append(var)
         elif k > 1:
@@ -199,7 +200,7 @@ def _latex(poly) -> str:
     dim = poly.dim
     names = ", ".join(_INPUTS[:dim])
     terms = []
-    for e, c in zip(poly.exponents.tolist(), poly.coefficients):
+    for e, c in zip(poly.exponents.tolist(), poly.coefficients, strict=True):
         if c == 0:
             continue
         mono = _latex_monomial(e)

@@ -23,9 +23,9 @@ algebraically; translation and scale go into its normalisation), which the tests
 from __future__ import annotations
 
 import os
+from collections.abc import Iterable
 from functools import lru_cache
 from math import factorial
-from typing import Iterable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -113,7 +113,7 @@ def similarity(poly: ImplicitPolynomial, rotation: ArrayLike | None = None, tran
 
 def _bombieri_weights(exps: NDArray) -> NDArray[np.float64]:
     m = exps.sum(axis=1)
-    return np.array([np.prod([factorial(a) for a in e]) / factorial(k) for e, k in zip(exps.tolist(), m)])
+    return np.array([np.prod([factorial(a) for a in e]) / factorial(k) for e, k in zip(exps.tolist(), m, strict=True)])
 
 
 def invariant_center(poly: ImplicitPolynomial) -> NDArray[np.float64]:

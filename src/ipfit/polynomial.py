@@ -10,9 +10,10 @@ from __future__ import annotations
 import json
 import math
 import os
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from types import MappingProxyType
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -64,7 +65,7 @@ class Normalization:
         object.__setattr__(self, "scale", scale)
 
     @classmethod
-    def from_points(cls, points: ArrayLike) -> "Normalization":
+    def from_points(cls, points: ArrayLike) -> Normalization:
         """Centre at the mean and divide by the mean distance to it."""
         pts = as_points(points)
         center = pts.mean(axis=0)
@@ -75,7 +76,7 @@ class Normalization:
         return cls(center, scale)
 
     @classmethod
-    def identity(cls, dim: int) -> "Normalization":
+    def identity(cls, dim: int) -> Normalization:
         return cls(np.zeros(dim), 1.0)
 
     @property
@@ -160,13 +161,14 @@ class ImplicitPolynomial:
         object.__setattr__(self, "coefficients", coef)
         object.__setattr__(self, "normalization", norm)
         if self.measures is not None:
-            object.__setattr__(self, "measures", MappingProxyType({k: float(v) for k, v in dict(self.measures).items()}))
+            measures = {k: float(v) for k, v in dict(self.measures).items()}
+            object.__setattr__(self, "measures", MappingProxyType(measures))
         object.__setattr__(self, "info", MappingProxyType(dict(self.info)))
 
     # -- construction -------------------------------------------------------------------
     @classmethod
     def from_coefficients(cls, coefficients: ArrayLike, dim: int, normalization: Normalization | None = None,
-                          **kwargs) -> "ImplicitPolynomial":
+                          **kwargs) -> ImplicitPolynomial:
         """Build from a coefficient vector in graded order; the degree follows from its length."""
         coef = np.asarray(coefficients, dtype=np.float64).ravel()
         try:
@@ -177,7 +179,7 @@ class ImplicitPolynomial:
                         f"length {coef.size}") from None
         return cls(basis.exponents(dim, degree), coef, normalization, **kwargs)
 
-    def with_coefficients(self, coefficients: ArrayLike, **changes) -> "ImplicitPolynomial":
+    def with_coefficients(self, coefficients: ArrayLike, **changes) -> ImplicitPolynomial:
         """A copy with other coefficients (same basis and normalisation)."""
         return replace(self, coefficients=np.asarray(coefficients, dtype=np.float64), **changes)
 
@@ -248,7 +250,7 @@ class ImplicitPolynomial:
         return self(points) < 0
 
     # -- canonical form -----------------------------------------------------------------
-    def canonical(self, points: ArrayLike | None = None, normals: ArrayLike | None = None) -> "ImplicitPolynomial":
+    def canonical(self, points: ArrayLike | None = None, normals: ArrayLike | None = None) -> ImplicitPolynomial:
         """Unit-norm coefficients with the sign that makes f > 0 outside.
 
         With ``normals`` (and their ``points``) the sign makes ∇f agree with the normals on
@@ -299,7 +301,7 @@ class ImplicitPolynomial:
         write_text_atomic(path, self.to_json())
 
     @classmethod
-    def from_dict(cls, data: Mapping[str, Any], source: str = "result") -> "ImplicitPolynomial":
+    def from_dict(cls, data: Mapping[str, Any], source: str = "result") -> ImplicitPolynomial:
         """The final polynomial of a result's JSON object, validated completely first.
 
         Every key of ``docs/result-format.md`` is checked (see :mod:`ipfit.results`), so a
@@ -315,7 +317,7 @@ class ImplicitPolynomial:
                    measures=measures, info=data.get("info") or {})
 
     @classmethod
-    def from_json(cls, text: str | bytes) -> "ImplicitPolynomial":
+    def from_json(cls, text: str | bytes) -> ImplicitPolynomial:
         """The final polynomial of a result's JSON text."""
         if isinstance(text, bytes):
             text = text.decode("utf-8", errors="replace")
@@ -325,7 +327,7 @@ class ImplicitPolynomial:
         return cls.from_dict(parse_result_text(text, "JSON"), source="JSON")
 
     @classmethod
-    def load(cls, path: str | os.PathLike) -> "ImplicitPolynomial":
+    def load(cls, path: str | os.PathLike) -> ImplicitPolynomial:
         """Read a JSON result written by :meth:`save` or ``ipfit fit`` (extra keys are ignored)."""
         if not isinstance(path, (str, os.PathLike)):
             raise error("path", "a path to a result JSON", type(path).__name__)

@@ -37,7 +37,8 @@ protocol); registering it in :data:`RULES` makes its name accepted too.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Mapping, Sequence
+from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING
 
 from ._validation import check_choice, error
 from .quality import Quality

@@ -182,12 +182,12 @@ def _trim_mesh(zs: ZeroSet, near: NDArray[np.bool_], distance: float, reference:
 def _runs(keep: NDArray[np.bool_]) -> list[tuple[int, int]]:
     # [start, stop) of each run of True in keep
     edges = np.diff(np.concatenate([[0], keep.astype(np.int8), [0]]))
-    return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)))
+    return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1), strict=True))
 
 
 def _trim_curves(zs: ZeroSet, near: list[NDArray[np.bool_]], distance: float, reference: str) -> ZeroSet:
     pieces, removed, kept, n_removed = [], 0.0, 0.0, 0
-    for curve, ok, closed in zip(zs.curves, near, zs.curve_closed):
+    for curve, ok, closed in zip(zs.curves, near, zs.curve_closed, strict=True):
         lengths = np.linalg.norm(np.diff(curve, axis=0), axis=1)
         segment_ok = ok[:-1] & ok[1:]
         removed += float(lengths[~segment_ok].sum())

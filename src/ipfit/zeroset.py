@@ -17,9 +17,10 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import cached_property
-from typing import TYPE_CHECKING, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -79,8 +80,8 @@ def data_bounds(points: ArrayLike, margin: float = 0.25) -> NDArray[np.float64]:
     if longest == 0:
         longest = max(1.0, float(np.abs(lo).max()))  # one repeated point: any sensible box
     pad = margin * longest if margin > 0 else 0.0
-    pad = np.where(hi - lo > 0, pad, max(pad, 0.5 * longest))
-    return np.column_stack([lo - pad, hi + pad])
+    pads = np.where(hi - lo > 0, pad, max(pad, 0.5 * longest))  # per axis: a flat axis gets half the longest
+    return np.column_stack([lo - pads, hi + pads])
 
 
 def default_bounds(poly: ImplicitPolynomial, margin: float) -> NDArray[np.float64]:
@@ -108,7 +109,7 @@ def grid_axes(bounds: ArrayLike, resolution) -> list[NDArray[np.float64]]:
     arr = np.asarray(bounds, dtype=np.float64)
     shape = _resolution_per_axis(resolution, arr.shape[0])
     arr = _as_bounds(arr, len(shape))
-    return [np.linspace(lo, hi, n) for (lo, hi), n in zip(arr, shape)]
+    return [np.linspace(lo, hi, n) for (lo, hi), n in zip(arr, shape, strict=True)]
 
 
 def grid_values(poly: ImplicitPolynomial, bounds: ArrayLike, resolution) -> NDArray[np.float64]:
@@ -137,7 +138,8 @@ def grid_values(poly: ImplicitPolynomial, bounds: ArrayLike, resolution) -> NDAr
     dim, degree = poly.dim, poly.degree
     axes = grid_axes(_as_bounds(bounds, dim), resolution)
     norm = poly.normalization
-    tables = [basis.power_table(((ax - c) / norm.scale)[:, None], degree)[:, 0] for ax, c in zip(axes, norm.center)]
+    tables = [basis.power_table(((ax - c) / norm.scale)[:, None], degree)[:, 0]
+              for ax, c in zip(axes, norm.center, strict=True)]
     dense = np.zeros((degree + 1,) * dim)
     dense[tuple(poly.exponents.T)] = poly.coefficients
     if dim == 2:
@@ -217,8 +219,8 @@ class ZeroSet:
         from scipy.sparse import coo_matrix
         from scipy.sparse.csgraph import connected_components
 
-        f = self.faces
-        n = len(self.vertices)
+        vertices, f = self._mesh()
+        n = len(vertices)
         rows = np.concatenate([f[:, 0], f[:, 1], f[:, 2]])
         cols = np.concatenate([f[:, 1], f[:, 2], f[:, 0]])
         graph = coo_matrix((np.ones(rows.size, dtype=np.int8), (rows, cols)), shape=(n, n))
@@ -236,9 +238,9 @@ class ZeroSet:
         out = np.zeros(self.n_components, dtype=bool)
         if self.is_empty:
             return out
-        f = self.faces
+        vertices, f = self._mesh()
         edges = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
-        codes = edges[:, 0] * np.int64(len(self.vertices)) + edges[:, 1]
+        codes = edges[:, 0] * np.int64(len(vertices)) + edges[:, 1]
         _, inverse, counts = np.unique(codes, return_inverse=True, return_counts=True)
         border = counts[inverse] == 1
         out[self.component_labels[np.tile(np.arange(len(f)), 3)[border]]] = True
@@ -254,12 +256,15 @@ class ZeroSet:
         """The pieces: 2D a list of polylines; 3D a list of ``(vertices, faces)`` meshes."""
         if self.dim == 2:
             return list(self.curves)
+        if self.is_empty:
+            return []
         out = []
         labels = self.component_labels
+        vertices, faces = self._mesh()
         for c in range(self.n_components):
-            f = self.faces[labels == c]
+            f = faces[labels == c]
             used, inverse = np.unique(f, return_inverse=True)
-            out.append((self.vertices[used], inverse.reshape(f.shape)))
+            out.append((vertices[used], inverse.reshape(f.shape)))
         return out
 
     @property
@@ -269,8 +274,15 @@ class ZeroSet:
             return 0.0
         if self.dim == 2:
             return float(sum(np.linalg.norm(np.diff(c, axis=0), axis=1).sum() for c in self.curves))
-        v, f = self.vertices, self.faces
+        v, f = self._mesh()
         return float(0.5 * np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]), axis=1).sum())
+
+    def _mesh(self) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+        """3D, not empty: ``(vertices, faces)``, which such a zero set always has (the fields are
+        optional only because a 2D zero set has neither)."""
+        if self.vertices is None or self.faces is None:
+            raise ValueError("ZeroSet: a 2D or empty zero set has no mesh")  # a bug of ipfit's, not an input error
+        return self.vertices, self.faces
 
     # -- sampling -----------------------------------------------------------------------
     def segments(self) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]]:
@@ -294,7 +306,7 @@ class ZeroSet:
         if self.dim == 2:
             starts, ends, labels = self.segments()
             return sample_segments(starts, ends, spacing, labels, max_samples)
-        return sample_triangles(self.vertices, self.faces, spacing, self.component_labels, max_samples)
+        return sample_triangles(*self._mesh(), spacing, self.component_labels, max_samples)
 
     def trimmed(self, points: ArrayLike, distance: float | None = None, *, faces: ArrayLike | None = None) -> ZeroSet:
         """The parts within ``distance`` of the data ``points`` (and their ``faces``), as a new
@@ -323,7 +335,8 @@ class ZeroSet:
         what = (f"curves={len(self.curves)}" if self.dim == 2 else
                 f"vertices={0 if self.vertices is None else len(self.vertices)}, "
                 f"faces={0 if self.faces is None else len(self.faces)}")
-        return f"ZeroSet(dim={self.dim}, {what}, components={self.n_components}, closed={self.closed}, step={self.step:.4g})"
+        return (f"ZeroSet(dim={self.dim}, {what}, components={self.n_components}, closed={self.closed}, "
+                f"step={self.step:.4g})")
 
 
 def _boundary_has_zero(values: NDArray) -> bool:

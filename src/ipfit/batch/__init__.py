@@ -51,18 +51,39 @@ import os
 import signal
 import time
 import uuid
+from collections.abc import Callable, Iterable
 from pathlib import Path
-from typing import Callable, Iterable
 
 from .. import _atomic
 from .._result_schema import FORMAT_NAME, validate_result
 from .._validation import check_int, error
 from ..exceptions import InvalidInputError
 from ..options import DEFAULT_DELTA, DEFAULT_EPSILON, DEFAULT_METHOD, DEFAULT_RULE, SearchOptions
-from ._cluster import (CONNECT_TIMEOUT, THREAD_ENV, HeldSignals, _client_for, check_workers, local_cluster,
-                       max_workers, require_distributed)
-from ._shapes import (COLUMNS, GENERATED_PREFIX, MAX_GENERATED, RESERVED_NAMES, BatchResult, FitSettings, _fit_task,
-                      _one_line, _row, _row_of, expand_inputs, shape_rng, unique_names)
+from ._cluster import (
+    CONNECT_TIMEOUT,
+    THREAD_ENV,
+    HeldSignals,
+    _client_for,
+    check_workers,
+    local_cluster,
+    max_workers,
+    require_distributed,
+)
+from ._shapes import (
+    COLUMNS,
+    GENERATED_PREFIX,
+    MAX_GENERATED,
+    RESERVED_NAMES,
+    BatchResult,
+    FitSettings,
+    _fit_task,
+    _one_line,
+    _row,
+    _row_of,
+    expand_inputs,
+    shape_rng,
+    unique_names,
+)
 
 __all__ = ["fit_many", "BatchResult", "FitSettings", "shape_rng", "local_cluster", "expand_inputs", "unique_names",
            "COLUMNS", "THREAD_ENV", "GENERATED_PREFIX", "MAX_GENERATED", "RESERVED_NAMES", "MANIFEST",

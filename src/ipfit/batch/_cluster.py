@@ -15,8 +15,9 @@ import logging
 import os
 import signal
 import threading
+from collections.abc import Iterator
 from concurrent.futures import ThreadPoolExecutor
-from typing import Any, Iterator
+from typing import Any
 
 from .._optional import require
 from .._validation import check_int
@@ -24,8 +25,8 @@ from ..exceptions import InvalidInputError
 from ._shapes import _one_line
 
 #: Set in every embedded worker: one BLAS / OpenMP / numba thread per worker process.
-THREAD_ENV = {name: "1" for name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
-                                     "NUMBA_NUM_THREADS", "VECLIB_MAXIMUM_THREADS", "NUMEXPR_NUM_THREADS")}
+THREAD_ENV = dict.fromkeys(("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS",
+                           "VECLIB_MAXIMUM_THREADS", "NUMEXPR_NUM_THREADS"), "1")
 #: Seconds to wait for a ``scheduler`` to answer (environment: ``IPFIT_BATCH_CONNECT_TIMEOUT``).
 CONNECT_TIMEOUT = 10.0
 #: The embedded cluster's bound: at most this many worker processes per core ...
@@ -101,7 +102,7 @@ class HeldSignals:
         self.signals: list[int] = []
         self._previous: dict = {}
 
-    def __enter__(self) -> "HeldSignals":
+    def __enter__(self) -> HeldSignals:
         return self
 
     def start(self) -> None:
@@ -192,7 +193,7 @@ def _probe(address: str, timeout: float) -> None:
     try:
         with ThreadPoolExecutor(1) as pool:  # its own thread: the caller may be inside an event loop (Jupyter)
             reply = pool.submit(ask).result()
-    except (OSError, asyncio.TimeoutError, ValueError, TypeError) as exc:
+    except (TimeoutError, OSError, ValueError, TypeError) as exc:
         reason = f"no answer within {timeout:g} s" if isinstance(exc, asyncio.TimeoutError) else _one_line(exc)
         raise InvalidInputError(f"--scheduler: cannot connect to {address} ({reason}). "
                                 "Check the address and that the scheduler is running.") from None

@@ -8,10 +8,11 @@ import io
 import json
 import os
 import time
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from glob import glob, has_magic
 from pathlib import Path
-from typing import Any, Iterable, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -288,7 +289,7 @@ def _fit_task(task: _Task, settings: FitSettings) -> dict:
             result = settings.fit(points, normals, task.name, faces)
         points = np.asarray(points, dtype=float)
         payload = result.to_dict()
-        payload["input"] = {"source": task.source, "n_points": int(len(points)),
+        payload["input"] = {"source": task.source, "n_points": len(points),
                             "normals": "estimated" if normals is None else "file"}
         if path is not None:
             payload["input"]["path"] = path

@@ -11,6 +11,6 @@ import signal
 import threading
 
 
-def dask_setup(worker) -> None:  # noqa: ARG001 - the preload hook's signature
+def dask_setup(worker) -> None:  # worker unused: the preload hook's signature
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGINT, signal.SIG_IGN)

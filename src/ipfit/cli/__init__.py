@@ -21,7 +21,7 @@ from ..exceptions import IpfitError, IpfitWarning
 TYPE_CHECKING = False  # typing.TYPE_CHECKING without importing typing
 if TYPE_CHECKING:
     import argparse
-    from typing import Sequence
+    from collections.abc import Sequence
 
 SUBCOMMANDS = ("fit", "batch", "normals", "mesh", "plot", "view", "score", "export", "render", "datasets",
                "reproduce")

@@ -12,8 +12,9 @@ import os
 import signal
 import sys
 import threading
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
-from typing import Callable, Iterator, Mapping, Sequence
+from typing import ClassVar
 
 import numpy as np
 
@@ -65,7 +66,7 @@ class Interrupted(KeyboardInterrupt):
 
 class _SignalState:
     command = "ipfit"
-    defer: list[str | None] = []  # what is being finished while signals are held (innermost last)
+    defer: ClassVar[list[str | None]] = []  # what is being finished while signals are held (innermost last)
     pending: int | None = None  # a signal held until a safe moment
     received: int | None = None  # the last signal of this run
 

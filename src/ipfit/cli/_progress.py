@@ -88,7 +88,8 @@ class Progress:
             self._last = time.monotonic()
             return
         from rich.console import Console
-        from rich.progress import BarColumn, MofNCompleteColumn, Progress as Bar, TextColumn, TimeElapsedColumn
+        from rich.progress import BarColumn, MofNCompleteColumn, TextColumn, TimeElapsedColumn
+        from rich.progress import Progress as Bar
 
         self._bar = Bar(TextColumn("degree {task.fields[degree]}: {task.description}"), BarColumn(),
                         MofNCompleteColumn(), TextColumn("objective {task.fields[objective]}"), TimeElapsedColumn(),

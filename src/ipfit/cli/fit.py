@@ -9,8 +9,18 @@ from pathlib import Path
 
 import numpy as np
 
-from ._common import (Outputs, beside, cli_names, default_prefix, finite_float, fit_prefix, nonnegative_float,
-                      nonnegative_int, positive_int, stop_at_iterations)
+from ._common import (
+    Outputs,
+    beside,
+    cli_names,
+    default_prefix,
+    finite_float,
+    fit_prefix,
+    nonnegative_float,
+    nonnegative_int,
+    positive_int,
+    stop_at_iterations,
+)
 from ._progress import Progress, progress_mode
 from .mesh import add_trim_argument, trim_for_export
 
@@ -70,15 +80,23 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def add_fit_options(parser: argparse.ArgumentParser) -> None:
     """The fit options shared by ``ipfit fit`` and ``ipfit batch`` (read back by :func:`search_settings`)."""
     from ..adaptive import fixed_degree_methods
+    from ..options import (
+        DEFAULT_DELTA,
+        DEFAULT_EPSILON,
+        DEFAULT_ITERATIONS,
+        DEFAULT_METHOD,
+        PAPER,
+        PAPER_METHOD,
+        PAPER_RULE,
+        RECOMMENDED,
+    )
     from ..rules import RULES
-    from ..options import (DEFAULT_DELTA, DEFAULT_EPSILON, DEFAULT_ITERATIONS, DEFAULT_METHOD, PAPER, PAPER_METHOD,
-                           PAPER_RULE, RECOMMENDED)
 
     parser.add_argument("--degree", default="auto", metavar="auto|N",
                         help="'auto' for the adaptive degree (default), or a fixed even degree N")
     parser.add_argument("--max-degree", type=positive_int, metavar="G",
-                        help="largest degree the adaptive loop tries (default: 14 in 2D and 8 in 3D with the capture rule, "
-                        "within 2 points per coefficient; 10 in 2D and 8 in 3D with the other rules)")
+                        help="largest degree the adaptive loop tries (default: 14 in 2D and 8 in 3D with the capture "
+                        "rule, within 2 points per coefficient; 10 in 2D and 8 in 3D with the other rules)")
     parser.add_argument("--method", default=None, choices=fixed_degree_methods(), metavar="METHOD",
                         help="fixed-degree method: " + ", ".join(fixed_degree_methods())
                         + f" (default {DEFAULT_METHOD}; 'de' and 'pso' are the paper's metaheuristics)")
@@ -103,7 +121,8 @@ def add_fit_options(parser: argparse.ArgumentParser) -> None:
                         help=f"metaheuristic iterations (default {DEFAULT_ITERATIONS})")
     parser.add_argument("--population", type=positive_int,
                         help="metaheuristic population (default 4 × the number of coefficients)")
-    parser.add_argument("--seed", type=nonnegative_int, default=0, help="random seed for a reproducible run (default 0)")
+    parser.add_argument("--seed", type=nonnegative_int, default=0,
+                        help="random seed for a reproducible run (default 0)")
 
 
 def search_settings(args: argparse.Namespace):
@@ -167,9 +186,8 @@ def _report_kept(data, max_points: int | None) -> None:
 def run(args: argparse.Namespace) -> int:
     from .. import basis
     from ..adaptive import fit_adaptive
-    from ..exceptions import InvalidInputError
-
     from ..datasets.loading import load
+    from ..exceptions import InvalidInputError
 
     data = load(args.input, max_points=args.max_points)
     _report_kept(data, args.max_points)
@@ -204,7 +222,7 @@ def run(args: argparse.Namespace) -> int:
     finally:
         shown.close()
     payload = result.to_dict()
-    payload["input"] = {"source": str(args.input), "n_points": int(len(points)), "normals": source}
+    payload["input"] = {"source": str(args.input), "n_points": len(points), "normals": source}
     if Path(args.input).exists():  # found again by ipfit plot/mesh/score from any folder
         payload["input"]["path"] = str(Path(args.input).resolve())
     payload["bounds"] = np.column_stack([points.min(axis=0), points.max(axis=0)]).tolist()

@@ -119,8 +119,8 @@ def check_output_suffix(path: str, dim: int) -> None:
 def _recorded_input(view):
     """The data recorded in a result: (Cloud, None) or (None, why it could not be used)."""
     from ..datasets import dataset_names
-    from ..exceptions import InvalidInputError
     from ..datasets.loading import load
+    from ..exceptions import InvalidInputError
 
     record = view.input
     path, source = record.get("path"), record.get("source")
@@ -162,8 +162,8 @@ def load_points(spec: str | None, view, command: str, *, required: bool = False,
     instead (``missing``); with ``required`` it is an error.
     """
     from .._result_schema import check_coordinates
-    from ..exceptions import InvalidInputError
     from ..datasets.loading import load
+    from ..exceptions import InvalidInputError
 
     if spec is None:
         data, why = _recorded_input(view)

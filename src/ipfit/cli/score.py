@@ -68,7 +68,8 @@ def run(args: argparse.Namespace) -> int:
         warn(NAME, f"'ipfit score RESULT DATA' is deprecated; use 'ipfit score {args.result} --points {spec}'.")
     view = result_view(args.result)
     # --write updates RESULT.json in place (that is its purpose); the data must never be the target
-    outputs = Outputs([args.result], inputs=[spec, *recorded_sources(view.data)], option="--write") if args.write else None
+    outputs = (Outputs([args.result], inputs=[spec, *recorded_sources(view.data)], option="--write") if args.write
+               else None)
     poly = view.fit(args.degree, name="--degree")
     points, faces = load_points(spec, view, NAME, required=True)
     ordered = poly.dim == 2 and faces is None and (

@@ -45,11 +45,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..exceptions import InvalidInputError
     from .._result_schema import check_coordinates
+    from ..datasets.loading import load
+    from ..exceptions import InvalidInputError
     from ..results import result_view
     from ..viewer import MAX_FACES, write_html
-    from ..datasets.loading import load
     from ._common import Outputs, recorded_sources
 
     check_trim_with_points(args)

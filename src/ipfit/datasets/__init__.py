@@ -5,9 +5,9 @@ The bundled files and their credits are listed by :func:`list_datasets` (``ipfit
 """
 
 from . import synthetic
-from .collection import GeneratedShape, collection
 from .bundled import dataset_faces, dataset_names, dataset_path, list_datasets, load_dataset
+from .collection import GeneratedShape, collection
 from .loading import load
 
-__all__ = ["synthetic", "collection", "GeneratedShape", "list_datasets", "dataset_names", "dataset_path", "load_dataset", "dataset_faces",
-           "load"]
+__all__ = ["synthetic", "collection", "GeneratedShape", "list_datasets", "dataset_names", "dataset_path",
+           "load_dataset", "dataset_faces", "load"]

@@ -121,7 +121,7 @@ def dataset_faces(name: str) -> NDArray[np.int64] | None:
     return None if faces is None else faces.copy()
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _load(name: str):
     entry = _entry(name)
     path = DATA_DIR / entry.file

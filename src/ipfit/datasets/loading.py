@@ -13,6 +13,7 @@ kept are the cloud's ``n_file`` and ``len(cloud)``, for the caller to report.
 from __future__ import annotations
 
 import os
+
 import numpy as np
 
 from .._validation import check_int, check_rng

@@ -6,8 +6,9 @@ import contextlib
 import importlib
 import logging
 import os
+from collections.abc import Iterator
 from pathlib import Path
-from typing import Iterator, NamedTuple
+from typing import NamedTuple
 
 from numpy.typing import NDArray
 

@@ -18,8 +18,9 @@ import os
 import re
 import stat
 import warnings
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -293,7 +294,7 @@ def _parse(path: Path) -> tuple[Raw, int]:
                         "Check that it is not corrupted.") from None
     except (KeyboardInterrupt, SystemExit):
         raise
-    except BaseException as exc:  # parsers raise anything on malformed input (Rust panics are BaseExceptions)
+    except BaseException as exc:  # noqa: BLE001 - parsers raise anything on malformed input (Rust panics are BaseExceptions)
         raise ReadError(f"{path}: not a valid {fmt.short_name} file ({short(exc)}). "
                         "Check that the file is complete and of the format its extension says.") from None
     return data, len(data.points)

@@ -185,7 +185,7 @@ def _check_pcd_structure(path: Path, raw: bytes) -> None:
         raise ReadError(f"{path}: the PCD header lists {len(fields)} FIELDS, {len(sizes)} SIZE, {len(types)} TYPE "
                         f"and {len(counts)} COUNT values; they must be as many, one per field. "
                         "The file is corrupted.")
-    for name, size, kind in zip(fields, sizes, types):
+    for name, size, kind in zip(fields, sizes, types, strict=True):
         if size not in _PCD_TYPES.get(kind, ()):
             raise ReadError(f"{path}: field {name[:40]!r} of the PCD header has TYPE {kind[:10]!r} and SIZE "
                             f"{_pcd_number(str(size))}; PCD fields are F of 4 or 8 bytes, or U and I of 1, 2, 4 "
@@ -206,7 +206,7 @@ def _check_pcd_structure(path: Path, raw: bytes) -> None:
                         "binary_compressed. The file is corrupted.")
     if points == 0:
         return
-    record = sum(size * count for size, count in zip(sizes, counts))
+    record = sum(size * count for size, count in zip(sizes, counts, strict=True))
     needed, available = points * record, len(raw) - start
     shown = _pcd_number(str(points))
     if encoding == "ascii":
@@ -272,7 +272,7 @@ def read_e57(path: Path, raw: bytes) -> Raw:
                 n = header.point_count
                 arrays = [np.empty(n, np.float64) for _ in E57_NORMAL_FIELDS]
                 buffers = libe57.VectorSourceDestBuffer()
-                for name, array in zip(E57_NORMAL_FIELDS, arrays):
+                for name, array in zip(E57_NORMAL_FIELDS, arrays, strict=True):
                     buffers.append(libe57.SourceDestBuffer(e57.image_file, name, array, n, True, True))
                 header.points.reader(buffers).read()
                 nrm = np.column_stack(arrays)

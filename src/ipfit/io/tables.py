@@ -75,7 +75,7 @@ def read_text(path: Path, raw: bytes) -> Raw:
 
 def _diagnose_table(path: Path, body: list[str], numbers: list[int], delimiter: str | None, ncols: int) -> None:
     """Find the first bad line (only on failure: a Python loop is fine here) and raise."""
-    for number, line in zip(numbers, body):
+    for number, line in zip(numbers, body, strict=True):
         words = _split(line, delimiter)
         if len(words) != ncols:
             raise ReadError(f"{path}: line {number} has {len(words)} values, expected {ncols} like the first row. "

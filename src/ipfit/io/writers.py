@@ -70,7 +70,7 @@ def _write_ply(path: Path, pts: NDArray, nrm: NDArray | None, binary: bool) -> N
         cols += [nrm[:, 0], nrm[:, 1], nrm[:, 2] if dim == 3 else np.zeros(n)]
         names += ["nx", "ny", "nz"]
     table = np.empty(n, dtype=[(name, "f8") for name in names])
-    for name, col in zip(names, cols):
+    for name, col in zip(names, cols, strict=True):
         table[name] = col
     comments = ["written by ipfit"] + ([IPFIT_2D] if dim == 2 else [])
     ply = PlyData([PlyElement.describe(table, "vertex")], text=not binary, comments=comments)

@@ -13,8 +13,7 @@ from scipy.spatial import cKDTree
 
 from .._numeric import row_norms, unit_rows_mask
 from .._validation import as_points, check_int, error
-from .local import (blocks, check_flag, check_workers, covariances, default_k, neighbours, pca_normals,
-                    standardise)
+from .local import blocks, check_flag, check_workers, covariances, default_k, neighbours, pca_normals, standardise
 from .orient import orient_graph
 from .scale import noise_scale, orient_coarse
 

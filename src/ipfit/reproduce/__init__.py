@@ -19,8 +19,17 @@ The package, in the order a run goes through it:
 - :mod:`.driver`: :func:`reproduce` itself, and reading/writing ``results.json``.
 """
 
-from .config import CONFIGS, DATASETS, DEFAULT_CONFIG, EXPERIMENTS, METHODS, PAPER_DEGREES, PATH_EPSILON, Config, \
-    get_config
+from .config import (
+           CONFIGS,
+           DATASETS,
+           DEFAULT_CONFIG,
+           EXPERIMENTS,
+           METHODS,
+           PAPER_DEGREES,
+           PATH_EPSILON,
+           Config,
+           get_config,
+)
 from .data import Data, Workspace, noise_neighbours, noisy_normals, prepare_data, rng_for
 from .driver import dumps, load_results, reproduce
 from .experiments import run_adaptive, run_convergence, run_delta, run_noise, run_ridge

@@ -16,8 +16,8 @@ printed in the report header); :data:`CONFIGS` names the three that ``ipfit repr
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
-from typing import Mapping, Sequence
 
 from .._validation import check_choice, error
 

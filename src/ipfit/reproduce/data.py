@@ -55,7 +55,7 @@ class Data:
         return float(np.linalg.norm(np.ptp(self.ref_points, axis=0)))
 
     def describe(self) -> dict:
-        return {"name": self.name, "source": self.source, "dim": self.dim, "n_points": int(len(self.points)),
+        return {"name": self.name, "source": self.source, "dim": self.dim, "n_points": len(self.points),
                 "n_total": self.n_total, "sampling": self.sampling, "diagonal": self.diagonal,
                 "reference": "faces" if self.ref_faces is not None else ("contour" if self.ordered else "points")}
 

@@ -14,9 +14,10 @@ import platform
 import re
 import subprocess
 import time
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict
 from pathlib import Path
-from typing import Any, Callable, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -85,7 +86,8 @@ def reproduce(out: str | os.PathLike, config: str | Config = DEFAULT_CONFIG, *, 
     timings["figures"] = time.perf_counter() - t0
     results["summary"] = to_jsonable(summarize(results))
     results["run"] = to_jsonable({
-        "command": command or f"ipfit reproduce --output {out}" + ("" if cfg.name == DEFAULT_CONFIG else f" --{cfg.name}"),
+        "command": command
+        or f"ipfit reproduce --output {out}" + ("" if cfg.name == DEFAULT_CONFIG else f" --{cfg.name}"),
         "seed": seed, "experiments": list(chosen), "ipfit_version": __version__, "commit": _commit(),
         "machine": f"{platform.machine()}, {os.cpu_count()} CPUs, Python {platform.python_version()}, "
                    f"NumPy {np.__version__}",

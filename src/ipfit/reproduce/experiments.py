@@ -14,7 +14,8 @@ callable, and returns the experiment's part of ``results.json``:
 
 from __future__ import annotations
 
-from typing import Any, Callable, Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -22,8 +23,15 @@ from ..adaptive import select_degree
 from .config import METHODS, eps_key, selected_degree
 from .data import Data, Workspace, rng_for, with_noise
 from .formatting import fmt
-from .measure import contour_roundness, fit_entry, history_entry, quality_entry, refine_summary, ridge_scale, \
-    zero_set_geometry
+from .measure import (
+    contour_roundness,
+    fit_entry,
+    history_entry,
+    quality_entry,
+    refine_summary,
+    ridge_scale,
+    zero_set_geometry,
+)
 from .runs import adaptive_fit, linear_fit, polish_fit, refine_fit, ridge_fit
 
 __all__ = ["run_delta", "run_adaptive", "run_adaptive_one", "run_ridge", "run_noise", "run_convergence",

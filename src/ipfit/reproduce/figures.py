@@ -9,8 +9,8 @@ figure that cannot be drawn is logged and left out, never half-written.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Callable, Mapping
 
 import numpy as np
 from numpy.typing import NDArray

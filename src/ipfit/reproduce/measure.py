@@ -8,7 +8,8 @@ reason, never as an exception that stops the run.
 from __future__ import annotations
 
 import math
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -109,7 +110,7 @@ def zero_set_geometry(poly, data: Data) -> dict:
     except IpfitError:
         return {"roundness": None, "p95_error": None, "max_error": None}
     best = None
-    for curve, closed in zip(zs.curves, zs.curve_closed):
+    for curve, closed in zip(zs.curves, zs.curve_closed, strict=True):
         if closed:
             area, perimeter = area_perimeter(curve)
             if perimeter > 0 and (best is None or area > best[0]):

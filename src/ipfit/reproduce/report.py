@@ -7,7 +7,8 @@ saved file and checked against it.
 
 from __future__ import annotations
 
-from typing import Any, Mapping, Sequence
+from collections.abc import Mapping, Sequence
+from typing import Any
 
 from ..plotting import METHOD_TITLES
 from .config import DEFAULT_CONFIG, EXPERIMENTS, PAPER_DEGREES, PATH_EPSILON
@@ -39,10 +40,10 @@ def render_report(results: Mapping) -> str:
     lines += ["## Summary: the paper's claims against this run", ""]
     lines += _table(["claim", "paper", "this run", "verdict"],
                     [(r["claim"], r["paper"], r["ours"], f"**{r['verdict']}**") for r in results["summary"]])
-    lines += ["Verdicts are computed by `ipfit.reproduce.summarize` from the numbers in `results.json` "
+    lines += [("Verdicts are computed by `ipfit.reproduce.summarize` from the numbers in `results.json` "
               "with the rules stated in each section below. The datasets are public stand-ins for the "
               "paper's (see `src/ipfit/datasets/data/CREDITS.md`), so the degrees are expected to resemble the "
-              "paper's, not match them.", ""]
+              "paper's, not match them."), ""]
     sections = {"delta": lambda: _delta_section(results["delta"], figures),
                 "adaptive": lambda: _adaptive_section(results, figures),
                 "ridge": lambda: _ridge_section(results["ridge"], figures),
@@ -52,12 +53,12 @@ def render_report(results: Mapping) -> str:
         if name in results:
             lines += sections[name]()
     lines += ["## Measures", "",
-              "*distance* = dissimilarity + δ(1 − smoothness) (paper, Eq. 4) on the fitted points with their "
+              ("*distance* = dissimilarity + δ(1 − smoothness) (paper, Eq. 4) on the fitted points with their "
               "normals, in normalised units (the data's mean radius is 1); *smoothness* = mean cosine between "
               "∇f and the normals (Eq. 3). *F* = F-score of the extracted zero set against the whole shape "
               "(recall: data within τ of the zero set; precision: zero set within τ of the shape); *spurious* = "
               "zero-set components with no part within τ of the shape; *closed* = the zero set closes inside "
-              "the box (25 % margin). *seconds* = wall time of that fit on this machine.", ""]
+              "the box (25 % margin). *seconds* = wall time of that fit on this machine."), ""]
     return "\n".join(lines).rstrip() + "\n"
 
 
@@ -83,8 +84,8 @@ def _settings_section(results: Mapping) -> list[str]:
         ("ipfit", f"{run['ipfit_version']}" + (f" (git {run['commit']})" if run.get("commit") else "")),
         ("experiments run", ", ".join(run["experiments"])),
         ("seed", run["seed"]),
-        ("metaheuristics", "DE (F = 0.7, CR = 0.9) and PSO (χ = 0.729), the paper's pure variants ('de', 'pso'), "
-                           "minimising the paper's distance (Eq. 5; no far-field term)"),
+        ("metaheuristics", ("DE (F = 0.7, CR = 0.9) and PSO (χ = 0.729), the paper's pure variants ('de', 'pso'), "
+                           "minimising the paper's distance (Eq. 5; no far-field term)")),
         ("degree rule", "Algorithm 1 (`rule='paper'`)"),
         ("seeds", "linear fits " + (", ".join(f"'{x}'" for x in cfg["seeds"]) + " (the paper's: classic and 3L)"
                                     if cfg["seeds"] else "from ipfit's default pool (`ipfit.refine.DEFAULT_SEEDS`)")
@@ -96,12 +97,12 @@ def _settings_section(results: Mapping) -> list[str]:
         ("degrees tried", f"2, 4, …, {cfg['max_degree_2d']} (2D); 2, 4, …, {cfg['max_degree_3d']} (3D)"),
         ("2D data", "all contour points" if cfg["points_2d"] is None else f"at most {cfg['points_2d']} points "
                     "(every k-th)"),
-        ("3D data", f"uniform random subset of {cfg['points_3d']} points (the paper also used fractions of the "
-                    f"clouds); bunny from `{cfg['bunny_source']}`"),
-        ("quality", "F-score, spurious components and closedness from `ipfit.quality` against the whole shape "
+        ("3D data", (f"uniform random subset of {cfg['points_3d']} points (the paper also used fractions of the "
+                    f"clouds); bunny from `{cfg['bunny_source']}`")),
+        ("quality", ("F-score, spurious components and closedness from `ipfit.quality` against the whole shape "
                     "(2D: the full ordered contour; 3D: the full mesh), τ = 2 % of the box diagonal; 3D zero sets "
                     f"extracted on a {cfg['quality_resolution_3d']}-node grid, ≤ {cfg['quality_max_samples']:,} "
-                    "samples"),
+                    "samples")),
         ("δ sweep", f"{cfg['delta_dataset']}, degree {cfg['delta_degree']}, DE, δ ∈ {{"
                     + ", ".join(f"{d:g}" for d in cfg["delta_values"]) + f"}}, {cfg['delta_seeds']} seed(s) each"),
         ("3L + ridge", ", ".join(cfg["ridge_datasets"]) + ", κ ∈ {0, " + ", ".join(f"{k:g}" for k in cfg["kappas"])
@@ -127,9 +128,9 @@ def _settings_section(results: Mapping) -> list[str]:
 def _delta_section(exp: Mapping, figures: Mapping) -> list[str]:
     d = exp["dataset"]
     lines = ["## 1. Setting δ (Fig. 7)", "",
-             f"DE at degree {exp['degree']} on the {d['name']} ({d['n_points']} points), "
+             (f"DE at degree {exp['degree']} on the {d['name']} ({d['n_points']} points), "
              f"{exp['seeds']} seed(s) per δ; measures at each run's own δ (smoothness and dissimilarity do not "
-             "depend on δ).", ""]
+             "depend on δ)."), ""]
     lines += _img(figures, "delta", "delta sweep")
     rows = []
     for p in exp["per_delta"]:
@@ -143,16 +144,16 @@ def _delta_section(exp: Mapping, figures: Mapping) -> list[str]:
                      "spurious (max)", "all closed", "clean seeds", "seconds (per seed)"], rows)
     sm = [p["smoothness_mean"] for p in exp["per_delta"]]
     dis = [p["dissimilarity_mean"] for p in exp["per_delta"]]
-    lines += [f"Across δ, the mean smoothness ranges over {min(sm):.4f}–{max(sm):.4f} and the mean dissimilarity "
-              f"over {sig(min(dis))}–{sig(max(dis))}.", ""]
+    lines += [(f"Across δ, the mean smoothness ranges over {min(sm):.4f}–{max(sm):.4f} and the mean dissimilarity "
+              f"over {sig(min(dis))}–{sig(max(dis))}."), ""]
     acceptable = acceptable_deltas(exp)
-    lines += ["Rules: *small δ unstable* if, at δ ≤ 0.01, the worst F-score is more than 0.05 below δ = 0.25's, "
+    lines += [("Rules: *small δ unstable* if, at δ ≤ 0.01, the worst F-score is more than 0.05 below δ = 0.25's, "
               "or there are more spurious components, or a zero set is open while all are closed at 0.25. "
               "*Large δ imprecise* if, at δ ≥ 1, the mean dissimilarity is at least 1.2 × δ = 0.25's or the mean "
               "F-score is more than 0.05 lower. *Acceptable* δ: most seeds clean (closed, no spurious component) "
               "and mean F-score within 0.05 of the best δ's; the range is *wide* if it contains 0.25 and spans a "
               "factor ≥ 10. "
-              f"Acceptable here: {', '.join(f'{x:g}' for x in acceptable) or 'none'}.", ""]
+              f"Acceptable here: {', '.join(f'{x:g}' for x in acceptable) or 'none'}."), ""]
     return lines
 
 
@@ -190,8 +191,8 @@ def _adaptive_section(results: Mapping, figures: Mapping) -> list[str]:
                 sel_rows.append((f"ε = {key}", f"{METHOD_TITLES[method]} (ours)", g, s["reason"], sig(p["distance"]),
                                  fmt(p["smoothness"]), fmt(p["f_score"], 3), p["n_spurious"], f"{p['seconds']:.1f}"))
         seen = set()
-        for method, run in ds["runs"].items():
-            for key, s in run["selection"].items():
+        for run in ds["runs"].values():
+            for s in run["selection"].values():
                 g = s["degree"]
                 if g in seen:
                     continue
@@ -199,8 +200,9 @@ def _adaptive_section(results: Mapping, figures: Mapping) -> list[str]:
                 for lin in ("lstsq", "3l"):
                     e = ds["linear"].get(f"{lin}@{g}")
                     if e:
-                        sel_rows.append((f"degree {g}", METHOD_TITLES[lin], g, "", sig(e["distance"]), fmt(e["smoothness"]),
-                                         fmt(e["f_score"], 3), e["n_spurious"], f"{e['seconds']:.3f}"))
+                        sel_rows.append((f"degree {g}", METHOD_TITLES[lin], g, "", sig(e["distance"]),
+                                         fmt(e["smoothness"]), fmt(e["f_score"], 3), e["n_spurious"],
+                                         f"{e['seconds']:.3f}"))
         lines += ["Selected degrees, and the linear fits at them:", ""]
         lines += _table(["rule", "fit", "degree", "reason", "distance", "smoothness", "F", "spurious", "seconds"],
                         sel_rows)
@@ -212,7 +214,7 @@ def _adaptive_section(results: Mapping, figures: Mapping) -> list[str]:
 def _ridge_section(exp: Mapping, figures: Mapping) -> list[str]:
     kappas = ", ".join(f"{k:g}" for k in exp["kappas"])
     lines = ["## 3. 3L + ridge regression against our method (Figs. 14–15)", "",
-             f"κ ∈ {{0, {kappas}}}. Why these values: ipfit's ridge matrix is D = γ_|α| α!/|α|! with "
+             (f"κ ∈ {{0, {kappas}}}. Why these values: ipfit's ridge matrix is D = γ_|α| α!/|α|! with "
              "γ_t = Σ_i ||u_i||^{2t} summed over the N normalised points, like the 3N rows of the 3L system AᵀA, so "
              "κ is relative to the per-point scale of the system and does not change with N or the data's units: "
              "the ratios D_αα / (AᵀA)_αα are given below for each dataset (`ipfit.reproduce.ridge_scale`), and "
@@ -221,18 +223,18 @@ def _ridge_section(exp: Mapping, figures: Mapping) -> list[str]:
              "decades of κ, and the tables show from which κ the zero set changes. "
              "*roundness* = 4πA/P² of the largest closed zero-set curve (1 for a circle); *max error* and "
              "*p95 error* = largest and 95th-percentile distance from the data to the zero set, relative to the "
-             "box diagonal: a lost corner shows as a large max error.", "",
-             "Rules: a 3L+RRR fit is *rounder* if its roundness exceeds 3L's (κ = 0) by more than 0.01; rounding "
+             "box diagonal: a lost corner shows as a large max error."), "",
+             ("Rules: a 3L+RRR fit is *rounder* if its roundness exceeds 3L's (κ = 0) by more than 0.01; rounding "
              "*sets in* at the smallest κ from which every larger κ of the grid is rounder. The claim agrees if "
              "(a) the largest κ is rounder than 3L and (b) our max error is below that of every 3L+RRR fit from "
-             "the onset on; partly if only one holds.", ""]
+             "the onset on; partly if only one holds."), ""]
     for name, ds in exp["datasets"].items():
-        lines += [f"### {name}, degree {ds['degree']} (our DE selection at ε = {ds['epsilon']:g}; "
-                  f"from the {ds['ours_source']})", "",
-                  f"Roundness of the data contour itself: {ds['data_roundness']:.3f} (pixel contours: the "
+        lines += [(f"### {name}, degree {ds['degree']} (our DE selection at ε = {ds['epsilon']:g}; "
+                  f"from the {ds['ours_source']})"), "",
+                  (f"Roundness of the data contour itself: {ds['data_roundness']:.3f} (pixel contours: the "
                   "staircase inflates the perimeter). D_αα / (AᵀA)_αα: median "
                   f"{sig(ds['ridge_scale']['median'], 3)}, range {sig(ds['ridge_scale']['min'], 3)}–"
-                  f"{sig(ds['ridge_scale']['max'], 3)}.", ""]
+                  f"{sig(ds['ridge_scale']['max'], 3)}."), ""]
         rows = [("ours (DE)", "", sig(ds["ours"]["distance"]), fmt(ds["ours"]["smoothness"]),
                  fmt(ds["ours"]["f_score"], 3), ds["ours"]["n_spurious"], fmt(ds["ours"]["roundness"], 3),
                  fmt(ds["ours"]["max_error"], 3), fmt(ds["ours"]["p95_error"], 3), "–")]
@@ -249,7 +251,7 @@ def _ridge_section(exp: Mapping, figures: Mapping) -> list[str]:
 
 def _noise_section(exp: Mapping, figures: Mapping) -> list[str]:
     lines = ["## 4. Noisy data (Fig. 16)", "",
-             "Gaussian noise of standard deviation σ × (the shape's bounding-box diagonal) added to every fitted "
+             ("Gaussian noise of standard deviation σ × (the shape's bounding-box diagonal) added to every fitted "
              "point; normals re-estimated from the noisy points (`ipfit.normals.estimate_normals`, also at σ = 0) "
              f"with k neighbours, k raised from the default to the median number of points within {NOISE_RADIUS:g}σ "
              "(`ipfit.reproduce.noise_neighbours`: the default k spans a few point spacings and would fit the "
@@ -257,7 +259,7 @@ def _noise_section(exp: Mapping, figures: Mapping) -> list[str]:
              "; "
              f"adaptive DE with ε = {exp['epsilon']:g} (Algorithm 1 stopping as in the paper). Measures on the noisy "
              "points; F-score against the clean shape. *normal agreement* = mean cosine between the re-estimated "
-             "and the original normals. The claim agrees if every σ > 0 selects degree 4.", ""]
+             "and the original normals. The claim agrees if every σ > 0 selects degree 4."), ""]
     lines += _img(figures, "noise", "noise")
     for name, ds in exp["datasets"].items():
         d = ds["data"]
@@ -275,11 +277,11 @@ def _noise_section(exp: Mapping, figures: Mapping) -> list[str]:
 def _convergence_section(exp: Mapping, figures: Mapping) -> list[str]:
     sets = ", ".join(f"{c['dataset']['name']} ({c['dataset']['n_points']} points)" for c in exp["datasets"].values())
     lines = ["## 5. PSO, DE and the polish: convergence", "",
-             f"{sets}; the same linear seeds for every method. DE and PSO: best distance after each generation (the "
+             (f"{sets}; the same linear seeds for every method. DE and PSO: best distance after each generation (the "
              "first value is the seeded initial population's best). *polish*: L-BFGS on the analytic gradient from "
              "the best linear seed, one value per L-BFGS step. *DE/PSO + polish*: the polish started from the "
              "metaheuristic's result (what ipfit's default `de+polish` does). *evaluations*: objective "
-             "evaluations (one per coefficient vector; the polish also computes a gradient each time).", ""]
+             "evaluations (one per coefficient vector; the polish also computes a gradient each time)."), ""]
     lines += _img(figures, "convergence", "convergence")
     rows = []
     for name, conv in exp["datasets"].items():

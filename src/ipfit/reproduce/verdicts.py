@@ -8,7 +8,8 @@ sections (:mod:`.report`); every threshold is here.
 
 from __future__ import annotations
 
-from typing import Any, Mapping
+from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 

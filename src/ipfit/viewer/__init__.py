@@ -27,8 +27,16 @@ Modules: ``figure`` (the plotly figure), ``geometry`` (decimation, spurious comp
 
 from __future__ import annotations
 
-from .figure import (CURRENT_ROW, CURVE_COLOR, MAX_FACES, MAX_POINTS, REASONS, SPURIOUS_COLOR, SURFACE_COLOR,
-                     result_figure)
+from .figure import (
+                     CURRENT_ROW,
+                     CURVE_COLOR,
+                     MAX_FACES,
+                     MAX_POINTS,
+                     REASONS,
+                     SPURIOUS_COLOR,
+                     SURFACE_COLOR,
+                     result_figure,
+)
 from .geometry import decimate, spurious_flags
 from .pages import index_page, page, to_html, write_html
 

@@ -5,15 +5,16 @@ from __future__ import annotations
 import html
 import math
 import textwrap
-from typing import Any, Mapping, NamedTuple
+from collections.abc import Mapping
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .._validation import as_normals, as_points, check_choice, check_int, check_positive, error
 from ..exceptions import IpfitError
-from ..results import load_result, result_view
 from ..polynomial import ImplicitPolynomial
+from ..results import load_result, result_view
 from ..zeroset import ZeroSet, data_bounds, default_bounds, extract_zero_set
 from .geometry import decimate, spurious_flags
 
@@ -135,7 +136,7 @@ def _zero_set_traces(go, dim: int, zs: ZeroSet, flags: NDArray[np.bool_], degree
         return traces
     if dim == 2:
         for spurious in (False, True):
-            curves = [c for c, s in zip(zs.curves, flags) if s == spurious]
+            curves = [c for c, s in zip(zs.curves, flags, strict=True) if s == spurious]
             if not curves:
                 continue
             xy = np.concatenate([np.vstack([c, [[np.nan, np.nan]]]) for c in curves])
@@ -309,7 +310,7 @@ def result_figure(result, points: ArrayLike | None = None, *, faces: ArrayLike |
         annotations=[dict(text=_why(data, selected), x=0.6, y=0.97, xref="paper", yref="paper", showarrow=False,
                           xanchor="left", yanchor="top", align="left")])
     if dim == 3:
-        camera_up = dict(zip("xyz", (float(a == up) for a in "xyz")))
+        camera_up = dict(zip("xyz", (float(a == up) for a in "xyz"), strict=True))
         fig.update_layout(scene=dict(domain=dict(x=[0.0, 0.58], y=[0.1, 1.0]), aspectmode="data",
                                      camera=dict(up=camera_up), **{f"{a}axis": dict(range=list(box[j]))
                                                                  for j, a in enumerate("xyz")}))
