@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 import ipfit
+from ipfit.batch import MANIFEST
 from ipfit.exceptions import IpfitError
 
 SRC = str(Path(ipfit.__file__).resolve().parents[1])
@@ -168,10 +169,10 @@ def batch_outputs(tally, work: Path) -> None:
     argv = [*BATCH, "a.csv", "a.xyz", "-o", "out", *FAST]
     cli_case(tally, cat, argv, case, protect=inputs, check=lambda cwd, code: _rows_lost(cwd / "out", 2),
              note="(a.csv and a.xyz) ")
-    stamps = {p.name: p.stat().st_mtime_ns for p in (case / "out").glob("*.json")}
+    stamps = {p.name: p.stat().st_mtime_ns for p in (case / "out").glob("[!.]*.json")}
 
     def refitted(cwd, code):
-        now = {p.name: p.stat().st_mtime_ns for p in (cwd / "out").glob("*.json")}
+        now = {p.name: p.stat().st_mtime_ns for p in (cwd / "out").glob("[!.]*.json")}
         again = [r for r in _summary(cwd / "out") if r.get("status") != "skipped"]
         out = _rows_lost(cwd / "out", 2)
         if again or now != stamps:
@@ -232,7 +233,7 @@ def _corrupted_resume(tally, work: Path, pts: np.ndarray) -> None:
         "coefficients NaN": {**good, "coefficients": [float("nan")] * len(good["coefficients"])},
         "degrees is a string": {**good, "degrees": "x"},
         "a 5000-digit coefficient": {**good, "coefficients": ["@"] + good["coefficients"][1:]},
-        "normalization null": {**good, "normalization": None}, "quality is a list": {**good, "quality": [0]},
+        "normalization a list": {**good, "normalization": [0, 1]}, "quality is a list": {**good, "quality": [0]},
     }
     texts = {label: json.dumps(doc).replace('"@"', "1" + "0" * 4999) for label, doc in corruptions.items()}
     texts["nested 100,000 deep"] = json.dumps({**good, "measures": "@"}).replace('"@"', deep)
@@ -277,7 +278,8 @@ def _batch_names(tally, work: Path, pts: np.ndarray) -> None:
         code, err = finish(proc)
         problem = None if code == 2 and len(err.strip().splitlines()) == 1 else verdict(code, err)
         outside = [p for p in case.rglob("*") if p.is_file() and (case / "box" / "out") not in p.parents]
-        hidden = [p for p in (case / "box" / "out").rglob(".*")] if (case / "box" / "out").exists() else []
+        hidden = [p for p in (case / "box" / "out").rglob(".*") if p.name != MANIFEST] \
+            if (case / "box" / "out").exists() else []
         if outside or hidden:
             problem = f"wrote {[str(p.relative_to(case)) for p in outside + hidden]}"
         tally.add(cat, clean=True, foreign=problem, reproducer=f"fit_many({{{name!r}: pts}}, output='out')",
