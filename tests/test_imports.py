@@ -188,3 +188,16 @@ def test_quality_zeroset_trim_form_no_cycle(module_graph, full_graph):
     assert not [c for c in cycles(module_graph) if c & measured]
     # quality and the distance engine sit above zeroset and trim even counting lazy imports
     assert not [c for c in cycles(full_graph) if c & {"ipfit.quality", "ipfit._distance"}]
+
+
+def test_the_architecture_page_shows_the_checked_layers():
+    """docs/architecture.md's layer list is written from .importlinter (which lint-imports checks
+    against the real imports): regenerate it with `python experiments/architecture.py`."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    script = root / "experiments" / "architecture.py"
+    assert subprocess.run([sys.executable, str(script), "--check"]).returncode == 0, \
+        "docs/architecture.md is stale: run python experiments/architecture.py"
