@@ -23,6 +23,7 @@ import pytest
 
 import ipfit
 from ipfit.cli import main
+from running import wait_for
 
 SRC = str(Path(ipfit.__file__).resolve().parents[1])
 FAST = ["--degree", "2", "--method", "3l", "-q"]
@@ -312,15 +313,6 @@ def _start(args, cwd, *, tty=False, **env):
     return proc, master
 
 
-def _wait_for(predicate, timeout=120.0):
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if predicate():
-            return True
-        time.sleep(0.02)
-    return False
-
-
 def _read_tty(master, buffer: list[str]) -> str:
     while select.select([master], [], [], 0)[0]:
         try:
@@ -351,7 +343,7 @@ def _finish(proc, master=None, buffer=None):
 def test_signal_during_the_final_write_keeps_every_output(tmp_path, heart_csv, sig):
     proc, _ = _start(["fit", str(heart_csv), "-o", "r", "--degree", "2", "--method", "3l"], tmp_path,
                      IPFIT_TEST_WRITE_DELAY="0.5")
-    assert _wait_for(lambda: _writing(tmp_path))
+    assert wait_for(lambda: _writing(tmp_path))
     proc.send_signal(sig)
     code, out, err = _finish(proc)
     assert code == 128 + sig
@@ -363,7 +355,7 @@ def test_signal_during_the_final_write_keeps_every_output(tmp_path, heart_csv, s
 @pytest.mark.slow
 def test_second_signal_during_the_write_abandons_it_cleanly(tmp_path, heart_csv):
     proc, _ = _start(["fit", str(heart_csv), "-o", "r", *FAST], tmp_path, IPFIT_TEST_WRITE_DELAY="1")
-    assert _wait_for(lambda: _writing(tmp_path))
+    assert wait_for(lambda: _writing(tmp_path))
     proc.send_signal(signal.SIGINT)
     time.sleep(0.1)
     proc.send_signal(signal.SIGTERM)
@@ -379,7 +371,7 @@ def test_signal_after_the_first_degree_keeps_it(tmp_path, heart_csv, sig):
     proc, master = _start(["fit", str(heart_csv), "-o", "r", "--method", "de", "--iterations", "400",
                            "--max-degree", "8", "--rule", "paper", "--epsilon", "-1"], tmp_path, tty=True)
     buffer: list[str] = []
-    assert _wait_for(lambda: "degree 2: distance" in _read_tty(master, buffer), timeout=240)
+    assert wait_for(lambda: "degree 2: distance" in _read_tty(master, buffer), timeout=240)
     proc.send_signal(sig)
     code, out, err = _finish(proc, master, buffer)
     assert code == 128 + sig, err
@@ -395,7 +387,7 @@ def test_signal_before_the_first_degree_writes_nothing(tmp_path, heart_csv, sig)
     proc, master = _start(["fit", str(heart_csv), "-o", "r", "--method", "de", "--iterations", "100000"],
                           tmp_path, tty=True)
     buffer: list[str] = []
-    assert _wait_for(lambda: "objective" in _read_tty(master, buffer), timeout=240)  # the DE stage is running
+    assert wait_for(lambda: "objective" in _read_tty(master, buffer), timeout=240)  # the DE stage is running
     proc.send_signal(sig)
     code, _, err = _finish(proc, master, buffer)
     assert code == 128 + sig

@@ -1,7 +1,6 @@
 """Scanner and scene formats (issue 20): glTF/GLB, LAS/LAZ, PCD, E57, written by the tests
 with the same libraries; subsampling on read; `ipfit fit` end to end on a GLB and a LAZ file."""
 
-import json
 import os
 import struct
 import subprocess
@@ -16,9 +15,9 @@ from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
 from ipfit import io
-from ipfit.cli import main
 from ipfit.exceptions import ReadError
 from scanner_files import e57_file, glb_scene, las_file, pcd_file, unit
+from running import quick_fit
 
 OFFSETS = (4.5e5, 5.2e6, 300.0)
 
@@ -195,33 +194,25 @@ def test_a_missing_scanner_library_names_the_extra(tmp_path, monkeypatch):
         io.read_points(path)
 
 
-def _fit(tmp_path, path, *extra):
-    prefix = tmp_path / "out" / "fit"
-    code = main(["fit", str(path), "-o", str(prefix), "--degree", "2", "--method", "3l", "--no-picture",
-                 "--no-zero-set", "-q", *extra])
-    assert code == 0
-    return json.loads(prefix.with_suffix(".json").read_text())
-
-
 def test_fit_end_to_end_on_a_glb(tmp_path):
     path = tmp_path / "ball.glb"
     ball = trimesh.creation.icosphere(subdivisions=2, radius=2.0)
     ball.apply_translation([10.0, -4.0, 1.0])
     path.write_bytes(trimesh.Scene(ball).export(file_type="glb"))
-    result = _fit(tmp_path, path)
+    result = quick_fit(tmp_path, path)
     assert result["selected_degree"] == 2 and result["dim"] == 3
 
 
 def test_fit_end_to_end_on_a_laz_with_max_points(tmp_path, world_cloud, capsys):
     path = tmp_path / "scan.laz"
     las_file(path, *world_cloud)
-    result = _fit(tmp_path, path, "--max-points", "300")
+    result = quick_fit(tmp_path, path, "--max-points", "300")
     assert result["selected_degree"] == 2 and result["input"]["n_points"] == 300
     assert "kept 300 of the file's 600 points" in capsys.readouterr().err
 
 
 def test_fit_max_points_on_a_bundled_dataset(tmp_path, capsys):
-    result = _fit(tmp_path, "bunny_res4", "--max-points", "100")
+    result = quick_fit(tmp_path, "bunny_res4", "--max-points", "100")
     assert result["selected_degree"] == 2 and result["input"]["n_points"] == 100
     assert "kept 100 of its 453 points" in capsys.readouterr().err
 

@@ -5,17 +5,16 @@ gives: the same points, normals, faces and fixed-seed subsample as the readers, 
 once, nothing printed, one-line errors; and the CLI's own "kept N of M" line.
 """
 
-import json
 
 import numpy as np
 import pytest
 import trimesh
 
 import ipfit
-from ipfit.cli import main
 from ipfit.datasets import dataset_faces, load_dataset
 from ipfit.exceptions import InvalidInputError, ReadError
 from ipfit.io import readers
+from running import quick_fit
 
 
 def _circle(n=600):
@@ -156,23 +155,15 @@ def test_a_cloud_built_in_code_checks_its_arrays_and_leaves_the_callers_writable
         ipfit.Cloud(points, n_file=5)
 
 
-def _fit(tmp_path, spec, *extra):
-    prefix = tmp_path / "out" / "fit"
-    code = main(["fit", str(spec), "-o", str(prefix), "--degree", "2", "--method", "3l", "--no-picture",
-                 "--no-zero-set", "-q", *extra])
-    assert code == 0
-    return json.loads(prefix.with_suffix(".json").read_text())
-
-
 def test_the_cli_prints_its_kept_line_from_the_counts(tmp_path, capsys):
-    result = _fit(tmp_path, "boot", "--max-points", "300")
+    result = quick_fit(tmp_path, "boot", "--max-points", "300")
     assert result["input"]["n_points"] == 300
     assert capsys.readouterr().err == "ipfit: boot: kept 300 of its 1,354 points (--max-points, fixed seed)\n"
 
     points, normals = _circle()
     path = ipfit.write_points(tmp_path / "circle.csv", points, normals)
-    _fit(tmp_path, path, "--max-points", "250")
+    quick_fit(tmp_path, path, "--max-points", "250")
     assert capsys.readouterr().err == (f"ipfit: {path}: kept 250 of the file's 600 points "
                                        "(--max-points 250, fixed seed)\n")
-    _fit(tmp_path, path, "--max-points", "1000")
+    quick_fit(tmp_path, path, "--max-points", "1000")
     assert capsys.readouterr().err == ""

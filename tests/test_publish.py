@@ -33,6 +33,7 @@ import ipfit
 from ipfit import _atomic
 from ipfit.cli import main
 from ipfit.exceptions import InvalidInputError, ReadError
+from running import wait_for
 
 SRC = str(Path(ipfit.__file__).resolve().parents[1])
 FAST = ["--degree", "2", "--method", "3l", "-q"]
@@ -91,15 +92,6 @@ def _start(args, cwd, **env) -> subprocess.Popen:
                             stderr=subprocess.PIPE, env=_env(**env), text=True)
 
 
-def _wait_for(predicate, timeout=120.0) -> bool:
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if predicate():
-            return True
-        time.sleep(0.01)
-    return False
-
-
 def _writing(folder: Path) -> bool:
     """The write phase has begun: a writer's own temporary beside the reserved ones, or the journal."""
     return len(list(folder.glob(".ipfit-*.partial*"))) > len(OUTPUTS) or any(folder.glob(".ipfit-*.journal"))
@@ -148,13 +140,13 @@ def test_a_prefix_being_written_is_refused_with_one_line(tmp_path, runs, capsys)
 
 # -- SIGKILL -------------------------------------------------------------------------------
 
-def _kill_while_writing(folder: Path, runs, wait_for, pause: float) -> None:
-    """An older set from input a, then a run on input b killed by SIGKILL once ``wait_for`` holds."""
+def _kill_while_writing(folder: Path, runs, moment, pause: float) -> None:
+    """An older set from input a, then a run on input b killed by SIGKILL once ``moment(folder)`` holds."""
     inputs, _ = runs
     assert main(["fit", str(inputs["a"]), "-o", str(folder / "r"), *FAST]) == 0
     proc = _start(["fit", str(inputs["b"]), "-o", "r", *FAST], folder, IPFIT_TEST_WRITE_DELAY=DELAY)
     try:
-        assert _wait_for(lambda: wait_for(folder) or proc.poll() is not None), proc.communicate()
+        assert wait_for(lambda: moment(folder) or proc.poll() is not None), proc.communicate()
         time.sleep(pause)
     finally:
         proc.send_signal(signal.SIGKILL)
