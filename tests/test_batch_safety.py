@@ -188,36 +188,44 @@ def _alive(pids) -> list[int]:
     return [p for p in pids if psutil.pid_exists(p) and psutil.Process(p).status() != psutil.STATUS_ZOMBIE]
 
 
-@pytest.mark.slow
-@pytest.mark.parametrize("signals", [1, 2])
-def test_ctrl_c_is_quiet_keeps_finished_results_and_stops_the_workers(tmp_path, signals):
+def _interrupt_batch(out, n_shapes: int, started, signals: int = 1) -> list[int]:
+    """``ipfit batch generated:N`` interrupted like a terminal's Ctrl-C (SIGINT to the process group,
+    workers included) once ``started(proc)`` holds; it must exit 130 quietly and leave no worker
+    process behind. The processes it had when signalled."""
     psutil = pytest.importorskip("psutil")
-    out = tmp_path / "out"
-    cmd = [sys.executable, "-m", "ipfit.cli", "batch", "generated:6", "-o", str(out), "--workers", "2",
-           "--max-degree", "6", "--iterations", "30"]
+    cmd = [sys.executable, "-m", "ipfit.cli", "batch", f"generated:{n_shapes}", "-o", str(out), "--workers", "2",
+           "--max-degree", "6", "--iterations", "300" if n_shapes > 6 else "30"]
     proc = subprocess.Popen(cmd, env=_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             start_new_session=True)
     deadline = time.monotonic() + 120
-    while not list(out.glob("[!.]*.json")) and time.monotonic() < deadline and proc.poll() is None:
-        time.sleep(0.1)
+    while proc.poll() is None and not started(proc) and time.monotonic() < deadline:
+        time.sleep(0.02)
     assert proc.poll() is None, proc.communicate()
-    workers = [c.pid for c in psutil.Process(proc.pid).children(recursive=True)]
-    assert workers
+    children = [c.pid for c in psutil.Process(proc.pid).children(recursive=True)]
     for _ in range(signals):
-        os.killpg(proc.pid, signal.SIGINT)  # as a terminal's Ctrl-C: the workers get it too
+        os.killpg(proc.pid, signal.SIGINT)
         time.sleep(0.3)
-    _, err = proc.communicate(timeout=60)
+    _, err = proc.communicate(timeout=120)
     assert proc.returncode == 130, err
     assert "Traceback" not in err and "Exception ignored" not in err and "KeyboardInterrupt" not in err, err
+    deadline = time.monotonic() + 10
+    while _alive(children) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert not _alive(children)
+    return children
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("signals", [1, 2])
+def test_ctrl_c_is_quiet_keeps_finished_results_and_stops_the_workers(tmp_path, signals):
+    out = tmp_path / "out"
+    workers = _interrupt_batch(out, 6, lambda proc: bool(list(out.glob("[!.]*.json"))), signals)
+    assert workers
     rows = _summary(out)
     finished = {p.stem for p in out.glob("[!.]*.json")}
     assert len(rows) == 6 and finished == {r["name"] for r in rows if r["status"] == "ok"}
     for name in finished:
         load_result(out / f"{name}.json")
-    deadline = time.monotonic() + 10
-    while _alive(workers) and time.monotonic() < deadline:
-        time.sleep(0.2)
-    assert not _alive(workers)
 
 
 def test_ctrl_c_while_the_cluster_starts_is_held_not_lost(tmp_path):
@@ -225,23 +233,9 @@ def test_ctrl_c_while_the_cluster_starts_is_held_not_lost(tmp_path):
     waits and stops the batch once the cluster is up, exit 130, quietly; it is never dropped."""
     psutil = pytest.importorskip("psutil")
     out = tmp_path / "out"
-    cmd = [sys.executable, "-m", "ipfit.cli", "batch", "generated:40", "-o", str(out), "--workers", "2",
-           "--max-degree", "6", "--iterations", "300"]
-    proc = subprocess.Popen(cmd, env=_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            start_new_session=True)
-    deadline = time.monotonic() + 120
-    while not psutil.Process(proc.pid).children() and time.monotonic() < deadline and proc.poll() is None:
-        time.sleep(0.02)  # the first worker process exists: the cluster is starting
-    children = [c.pid for c in psutil.Process(proc.pid).children(recursive=True)]
-    os.killpg(proc.pid, signal.SIGINT)
-    _, err = proc.communicate(timeout=120)
-    assert proc.returncode == 130, err
-    assert "Traceback" not in err and "Exception ignored" not in err and "KeyboardInterrupt" not in err, err
+    # signalled as soon as the first worker process exists: the cluster is starting
+    _interrupt_batch(out, 40, lambda proc: bool(psutil.Process(proc.pid).children()))
     assert len(list(out.glob("[!.]*.json"))) < 40  # stopped early, not after all forty shapes
-    deadline = time.monotonic() + 10
-    while _alive(children) and time.monotonic() < deadline:
-        time.sleep(0.2)
-    assert not _alive(children)
 
 
 # -- a core install --------------------------------------------------------------------------------------
