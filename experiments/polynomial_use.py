@@ -35,7 +35,7 @@ def render_bunny(folder: Path) -> tuple[str, float, dict]:
     """Render the bunny fit, and check what was drawn: sign changes of f, distance to the scan."""
     from scipy.spatial import cKDTree
 
-    from ipfit.plotting import result_view
+    from ipfit.results import result_view
     from ipfit.rays import camera_rays, first_hits
     from ipfit.zeroset import data_bounds
 

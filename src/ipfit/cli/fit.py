@@ -86,7 +86,7 @@ def add_fit_options(parser: argparse.ArgumentParser) -> None:
                         help=f"stop when smoothness improves by no more than this (default {DEFAULT_EPSILON})")
     parser.add_argument("--delta", type=nonnegative_float, default=DEFAULT_DELTA,
                         help=f"penalty weight δ of the paper's distance (default {DEFAULT_DELTA})")
-    parser.add_argument("--far-term-weight", "--far-weight", dest="far_term_weight", type=nonnegative_float,
+    parser.add_argument("--far-term-weight", dest="far_term_weight", type=nonnegative_float,
                         default=None, metavar="W",
                         help="weight of the far-field term that keeps the zero set from growing spurious sheets "
                         f"(default {RECOMMENDED.far_term_weight:g}; 0 is the paper's objective)")
