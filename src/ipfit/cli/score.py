@@ -69,7 +69,7 @@ def run(args: argparse.Namespace) -> int:
                 margin=args.margin, resolution=args.resolution)
     from ..projection import distance_summary
 
-    dist = distance_summary(points, poly)  # true distance (closest points) beside Taubin's estimate
+    dist = distance_summary(poly, points)  # true distance (closest points) beside Taubin's estimate
     if args.json:
         print(json.dumps({**q.to_dict(), "distance_to_zero_set": dist}, indent=1))
     else:
