@@ -158,7 +158,7 @@ class AdaptiveResult(Result):
         out["selected_degree"] = self.selected_degree
         out["degrees"] = [d.to_dict() for d in self.degrees]
         out["adaptive"] = {"epsilon": self.epsilon, "delta": self.delta, "method": self.method,
-                           "reason": self.reason, "rule": self.rule, "far_weight": self.far_term_weight,
+                           "reason": self.reason, "rule": self.rule, "far_term_weight": self.far_term_weight,
                            "seconds": self.seconds, "success": self.success, "message": self.message}
         if self.options is not None:
             out["adaptive"]["options"] = self.options.to_dict()
