@@ -296,7 +296,7 @@ class SearchOptions:
                             f"{name}={value!r}", "Leave it unset or pick a method that uses it.")
         return method
 
-    def for_method(self, method: str, dim: int) -> "MethodOptions":
+    def for_method(self, method: str, dim: int) -> MethodOptions:
         """Every setting resolved for ``method`` (one of :data:`REFINE_METHODS`) on data of
         dimension ``dim``: method defaults filled in, "auto" values decided, start fits parsed.
         Checked as :meth:`check_method` does.
