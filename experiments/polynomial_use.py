@@ -35,7 +35,7 @@ def render_bunny(folder: Path) -> tuple[str, float, dict]:
     """Render the bunny fit, and check what was drawn: sign changes of f, distance to the scan."""
     from scipy.spatial import cKDTree
 
-    from ipfit.plotting import result_view
+    from ipfit.results import result_view
     from ipfit.rays import camera_rays, first_hits
     from ipfit.zeroset import data_bounds
 
@@ -67,7 +67,7 @@ def distance_table() -> list[str]:
         poly = ipfit.ImplicitPolynomial.load(ROOT / f"docs/datasets/{name}.json")
         points, _ = ipfit.load_dataset(name)
         start = time.perf_counter()
-        s = distance_summary(points, poly)
+        s = distance_summary(poly, points)
         seconds = time.perf_counter() - start
         rows.append(f"| {name} | {poly.degree} | {s['n_points']} | {s['projected_mean']:.4g} | "
                     f"{s['projected_max']:.4g} | {s['taubin_mean']:.4g} | {s['taubin_max']:.4g} | {seconds:.1f} |")
@@ -83,7 +83,7 @@ def boot_curvature(folder: Path) -> tuple[str, float, float]:
     poly = ipfit.ImplicitPolynomial.load(ROOT / "docs/datasets/boot.json")
     points, _ = ipfit.load_dataset("boot")
     on_curve = poly.project(points).points
-    k = curvature(on_curve, poly).mean
+    k = curvature(poly, on_curve).mean
     fig, ax = plt.subplots(figsize=(7, 4))
     limit = np.percentile(np.abs(k), 98)
     sc = ax.scatter(on_curve[:, 0], on_curve[:, 1], c=k, cmap="coolwarm", vmin=-limit, vmax=limit, s=6)

@@ -127,8 +127,6 @@ def test_an_option_for_a_method_without_search_is_an_error():
     shape = synthetic.circle(50)
     with pytest.raises(ipfit.InvalidInputError, match="options: expected None for method '3l'"):
         fit_adaptive(shape.points, shape.normals, method="3l", options=ipfit.SearchOptions(iterations=3))
-    with pytest.warns(DeprecationWarning), pytest.raises(ipfit.InvalidInputError, match="options: expected None"):
-        fit_adaptive(shape.points, shape.normals, method="3l", far_weight=0.5)
     with pytest.raises(ipfit.InvalidInputError, match="chi: expected a setting used by method 'de'"):
         fit_adaptive(shape.points, shape.normals, method="de", options=ipfit.SearchOptions(chi=0.7))
     with pytest.raises(ipfit.InvalidInputError, match="progress: expected a callable"):
@@ -192,15 +190,15 @@ def test_a_spurious_component_is_polished_away_before_the_degree_is_rejected():
 def test_auto_search_settings_depend_on_the_dimension():
     for dim, points, stall, polish, dtype in ((2, 1000, 30, 300, "float64"), (3, 3000, 30, 1000, "float32")):
         resolved = ipfit.RECOMMENDED.for_method("de+polish", dim=dim)
-        assert (resolved["search_points"], resolved["stall_generations"], resolved["polish_iterations"],
-                resolved["dtype"]) == (points, stall, polish, dtype)
-    assert ipfit.PAPER.for_method("de", dim=3)["dtype"] == "float64"
+        assert (resolved.search_points, resolved.stall_generations, resolved.polish_iterations,
+                resolved.dtype) == (points, stall, polish, dtype)
+    assert ipfit.PAPER.for_method("de", dim=3).dtype == "float64"
     assert ipfit.SearchOptions(dtype=np.float32).dtype == "float32"
     with pytest.raises(ipfit.InvalidInputError, match="dtype: expected one of"):
         ipfit.SearchOptions(dtype="float16")
     # an explicit value is the user's, in every dimension; the paper's preset has no "auto"
-    assert ipfit.SearchOptions(search_points=500).for_method("de", dim=3)["search_points"] == 500
-    assert ipfit.PAPER.for_method("de", dim=2)["search_points"] is None
+    assert ipfit.SearchOptions(search_points=500).for_method("de", dim=3).search_points == 500
+    assert ipfit.PAPER.for_method("de", dim=2).search_points is None
     with pytest.raises(ipfit.InvalidInputError, match="search_points: expected an integer >= 10, None or 'auto'"):
         ipfit.SearchOptions(search_points="many")
     # a contour of 1,500 points is searched on 1,000 of them

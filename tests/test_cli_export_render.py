@@ -92,12 +92,12 @@ def test_score_reports_true_distance_beside_taubin(circle_json, tmp_path, capsys
     t = np.linspace(0, 2 * np.pi, 60, endpoint=False)
     radii = 2.0 + np.where(np.arange(60) % 2, 0.3, -0.2)  # data off the circle by 0.3 and 0.2
     np.savetxt(data, np.column_stack([1 + radii * np.cos(t), -1 + radii * np.sin(t)]))
-    assert main(["score", str(path), str(data), "--json"]) == 0
+    assert main(["score", str(path), "--points", str(data), "--json"]) == 0
     dist = json.loads(capsys.readouterr().out)["distance_to_zero_set"]
     assert dist["projected_mean"] == pytest.approx(0.25, abs=1e-9)
     assert dist["projected_max"] == pytest.approx(0.3, abs=1e-9)
     # Taubin's |f|/|∇f| = |ρ² − 4| / (2ρ): 0.2804 and 0.2111 here, not the true 0.3 and 0.2.
     assert dist["taubin_mean"] == pytest.approx(np.mean(np.abs(radii**2 - 4) / (2 * radii)), rel=1e-9)
-    assert main(["score", str(path), str(data)]) == 0
+    assert main(["score", str(path), "--points", str(data)]) == 0
     out = capsys.readouterr().out
     assert "distance_true     mean 0.25, max 0.3" in out and "distance_taubin" in out

@@ -76,7 +76,7 @@ def test_paper_flag_is_the_paper_preset_bit_for_bit(tmp_path):
     code = main(["fit", "airplane", "-o", str(tmp_path / "p"), "--paper", "--quiet", "--no-picture", "--no-zero-set"])
     assert code == 0
     data = json.loads((tmp_path / "p.json").read_text())
-    assert data["adaptive"]["rule"] == "paper" and data["adaptive"]["far_weight"] == 0.0
+    assert data["adaptive"]["rule"] == "paper" and data["adaptive"]["far_term_weight"] == 0.0
     assert data["method"] == "de"
     assert_obeys_its_rule(data)
     points, normals = ipfit.load_dataset("airplane")

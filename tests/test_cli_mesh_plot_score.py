@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ipfit.cli import main
+from ipfit.cli import build_parser, main
 from ipfit.datasets import synthetic
 
 from test_plotting import adaptive_result, nonblank
@@ -288,16 +288,14 @@ def test_score_prints_and_writes(torus_json, tmp_path, capsys):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["torus.csv", "torus.json"]
 
 
-def test_score_positional_data_is_a_deprecated_alias(circle_json, tmp_path, capsys):
+def test_score_takes_the_data_as_points_only(circle_json, tmp_path, capsys):
     shape, path = circle_json
     data = write_points(tmp_path / "c.csv", shape.points)
     code, new, err = run(capsys, ["score", path, "--points", data, "--json"])
-    assert code == 0 and err == ""
-    code, old, err = run(capsys, ["score", path, data, "--json"])
-    assert code == 0 and json.loads(old) == json.loads(new)
-    assert err.count("\n") == 1 and "deprecated" in err and f"--points {data}" in err
-    code, _, err = run(capsys, ["score", path, data, "--points", data])
-    assert_one_error_line(code, err, "score", "--points: given twice")
+    assert code == 0 and err == "" and json.loads(new)["recall"] == 1.0
+    with pytest.raises(SystemExit) as exc:  # the old positional DATA is gone: argparse refuses it
+        build_parser().parse_args(["score", str(path), str(data)])
+    assert exc.value.code == 2
 
 
 def test_score_finds_recorded_data_or_says_how_to_pass_it(circle_json, tmp_path, capsys):

@@ -33,7 +33,7 @@ def test_sphere_curvature_under_a_similarity(rng):
     poly = similarity(sphere(radius=r).polynomial, _rotation(rng, 3), [1.0, -2.0, 0.5], sigma)
     d = rng.standard_normal((100, 3))
     pts = np.array([1.0, -2.0, 0.5]) + r * sigma * d / np.linalg.norm(d, axis=1, keepdims=True)
-    c = curvature(pts, poly)
+    c = curvature(poly, pts)
     np.testing.assert_allclose(c.principal, 1 / (r * sigma), rtol=0, atol=1e-8)
     np.testing.assert_allclose(c.mean, 1 / (r * sigma), atol=1e-8)
     np.testing.assert_allclose(c.gaussian, 1 / (r * sigma) ** 2, atol=1e-8)
@@ -44,7 +44,7 @@ def test_cylinder_principal_directions(rng):
     poly = from_terms(3, 2, {(2, 0, 0): 1.0, (0, 2, 0): 1.0, (0, 0, 0): -r * r})
     t, z = rng.uniform(0, 2 * np.pi, 50), rng.uniform(-2, 2, 50)
     pts = np.column_stack([r * np.cos(t), r * np.sin(t), z])
-    c = curvature(pts, poly)
+    c = curvature(poly, pts)
     np.testing.assert_allclose(c.principal, np.tile([0.0, 1 / r], (50, 1)), atol=1e-8)
     np.testing.assert_allclose(c.gaussian, 0.0, atol=1e-8)
     np.testing.assert_allclose(c.mean, 0.5 / r, atol=1e-8)
@@ -76,7 +76,7 @@ def test_hessian_matches_differences_of_the_gradient(rng):
     poly = ipfit.fit_3l(points, normals, 6)
     pts = points[rng.choice(len(points), 20, replace=False)]
     h = poly.hessian(pts)
-    assert np.array_equal(h, hessian(pts, poly))
+    assert np.array_equal(h, hessian(poly, pts))
     eps = 1e-4 * poly.scale
     numeric = np.stack([(poly.gradient(pts + eps * e) - poly.gradient(pts - eps * e)) / (2 * eps)
                         for e in np.eye(2)], axis=2)
@@ -86,7 +86,7 @@ def test_hessian_matches_differences_of_the_gradient(rng):
 
 def test_singular_points_are_nan():
     cone = from_terms(3, 2, {(2, 0, 0): 1.0, (0, 2, 0): 1.0, (0, 0, 2): -1.0})  # apex: ∇f = 0
-    c = curvature([[0.0, 0.0, 0.0], [1.0, 0.0, 1.0]], cone)
+    c = curvature(cone, [[0.0, 0.0, 0.0], [1.0, 0.0, 1.0]])
     assert np.isnan(c.principal[0]).all() and np.isfinite(c.principal[1]).all()
     with pytest.raises(ipfit.InvalidInputError, match="points"):
-        curvature([[0.0, 0.0]], cone)
+        curvature(cone, [[0.0, 0.0]])

@@ -198,16 +198,12 @@ def test_bad_input_names_the_problem_and_the_fix(call, match):
     assert "\n" not in str(info.value)
 
 
-def test_all_fits_take_points_normals_degree_and_old_names_still_work():
+def test_all_fits_take_points_normals_degree_and_the_old_order_is_gone():
     shape = synthetic.ellipse(60)
-    new = ipfit.fit_lstsq(shape.points, shape.normals, 2)
-    with pytest.warns(DeprecationWarning, match="points, normals, degree"):
-        old = ipfit.fit_lstsq(shape.points, 2, normals=shape.normals)
-    np.testing.assert_array_equal(new.coefficients, old.coefficients)
-    with pytest.warns(DeprecationWarning, match="far_row_weight"):
-        renamed = ipfit.fit_3l(shape.points, shape.normals, 2, far_weight=1e-3)
-    np.testing.assert_array_equal(renamed.coefficients,
-                                  ipfit.fit_3l(shape.points, shape.normals, 2, far_row_weight=1e-3).coefficients)
+    with pytest.raises(TypeError, match="normals"):  # (points, degree, normals) is no longer accepted
+        ipfit.fit_lstsq(shape.points, 2, normals=shape.normals)
+    with pytest.raises(TypeError, match="far_weight"):
+        ipfit.fit_3l(shape.points, shape.normals, 2, far_weight=1e-3)
     far = ipfit.fit_linear(shape.points, shape.normals, 2, "3l-far")
     assert far.info["far_row_weight"] == ipfit.linear.DEFAULT_FAR_ROW_WEIGHT and far.info["far_samples"] > 0
 
@@ -238,7 +234,7 @@ def test_start_fits_share_their_big_factors_and_solve_the_stacked_systems(monkey
     real = ipfit.linear._r_of_blocks
     monkeypatch.setattr(ipfit.linear, "_r_of_blocks", lambda blocks: factored.append(1) or real(blocks))
     monkeypatch.setattr(ipfit.linear, "_FACTORS", Recent(8))
-    fits = {spec: fit_linear(pts, shape.normals, 4, parse_start_fit(spec)[0], **parse_start_fit(spec)[1])
+    fits = {spec: fit_linear(pts, shape.normals, 4, parse_start_fit(spec).method, **parse_start_fit(spec).params)
             for spec in DEFAULT_START_FITS}
     assert len(factored) == 5  # 3L at c = 0.05, 0.02, 0.1; M; the gradient rows (Taubin factors its own)
     u = fits["3l"].normalization.apply(pts)
@@ -273,3 +269,28 @@ def test_a_million_point_3l_fit_stays_in_bounded_memory():
     full = 3 * len(v) * poly.n_coefficients * 8  # the 3N × d design matrix alone (2 GB)
     assert peak < 0.45 * full  # a few row blocks of 2^17 rows (and their QR copies), never the whole matrix
     assert np.max(np.abs(poly(v[:1000] * [2.0, 1.0, 1.0]))) < 1e-3
+
+
+def test_a_method_registered_once_is_a_fit_a_start_fit_and_a_cli_choice(monkeypatch):
+    # One registry: a method added to LINEAR_METHODS (with its parameters) is accepted by
+    # fit_linear, as a start fit "name(param=...)" with its checks, and by `ipfit fit --method`.
+    from ipfit.cli import build_parser
+    from ipfit.linear import LinearMethod
+
+    def solve_wide_3l(problem, c=0.3):  # 3L at a wider default offset: a method of one's own
+        return ipfit.linear._solve_3l(problem, c=c)
+
+    monkeypatch.setitem(LINEAR_METHODS, "wide3l", LinearMethod(solve_wide_3l, needs_normals=True,
+                                                               params={"c": ipfit.linear._offset}))
+    shape = synthetic.ellipse(80)
+    own = fit_linear(shape.points, shape.normals, 2, "wide3l", c=0.2)
+    np.testing.assert_array_equal(own.coefficients, ipfit.fit_3l(shape.points, shape.normals, 2, c=0.2).coefficients)
+    with pytest.raises(ipfit.InvalidInputError, match="kappa: expected a parameter of the 'wide3l' fit"):
+        fit_linear(shape.points, shape.normals, 2, "wide3l", kappa=1.0)
+    options = ipfit.SearchOptions(start_fits=("wide3l(c=0.2)",), far_term_weight=0.0)
+    res = ipfit.refine(shape.points, shape.normals, 2, "polish", options=options, rng=0)
+    assert list(res.start_distances) == ["wide3l(c=0.2)"] and res.success
+    with pytest.raises(ipfit.InvalidInputError, match=r"^start_fits: expected valid parameters of wide3l.*c: expected"):
+        ipfit.SearchOptions(start_fits=("wide3l(c=-1)",))
+    assert build_parser().parse_args(["fit", "boot", "--method", "wide3l"]).method == "wide3l"
+    assert ipfit.fit_adaptive(shape.points, shape.normals, method="wide3l", max_degree=2).polynomial.method == "wide3l"

@@ -6,8 +6,8 @@ from scipy.spatial import cKDTree
 
 from ipfit.datasets import bundled, synthetic
 from ipfit.exceptions import InvalidInputError
-from ipfit.io import _complete, vertex_normals_from_faces
-from ipfit.solid import outward_vertices
+from ipfit.io import fill_missing_normals, vertex_normals_from_faces
+from ipfit.io.mesh import outward_vertices
 from ipfit.normals import DEFAULT_K, contour_normals, estimate_normals, normal_agreement, orient_normals
 from ipfit.normals.local import pca_normals
 from ipfit.normals.scale import noise_scale
@@ -15,7 +15,7 @@ from ipfit.normals.scale import noise_scale
 
 def face_normals(name):
     points, _ = bundled.load_dataset(name)
-    return points, _complete(points, vertex_normals_from_faces(points, bundled.dataset_faces(name)))
+    return points, fill_missing_normals(points, vertex_normals_from_faces(points, bundled.dataset_faces(name)))
 
 
 # -- synthetic shapes ------------------------------------------------------------------------------

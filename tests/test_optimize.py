@@ -188,8 +188,6 @@ def test_solver_errors(rng):
         DifferentialEvolution(sphere, np.zeros((5, 2)), mutation=0.0)
     with pytest.raises(InvalidInputError, match="recombination"):
         DifferentialEvolution(sphere, np.zeros((5, 2)), recombination=1.5)
-    with pytest.warns(DeprecationWarning, match="F="), pytest.raises(InvalidInputError, match="mutation"):
-        DifferentialEvolution(sphere, np.zeros((5, 2)), F=0.0)
     with pytest.raises(InvalidInputError, match="chi"):
         ParticleSwarm(sphere, np.zeros((5, 2)), chi=1.2)
     with pytest.raises(InvalidInputError, match="func"):

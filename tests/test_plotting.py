@@ -285,13 +285,6 @@ def test_save_figure_bounds_the_pixel_count(tmp_path):
     close(ax)
 
 
-def test_plotting_still_offers_the_result_readers():
-    import ipfit.plotting as plotting
-    import ipfit.results as results
-
-    assert plotting.load_result is results.load_result and plotting.result_view is results.result_view
-
-
 def _figures_module():
     spec = importlib.util.spec_from_file_location("ipfit_figures_script", REPO / "experiments" / "figures.py")
     module = importlib.util.module_from_spec(spec)

@@ -51,7 +51,7 @@ def test_json_round_trip_keeps_the_contract_keys(tmp_path):
     data = json.loads(poly.to_json())
     for key in ("format", "version", "dim", "degree", "exponents", "coefficients", "normalization", "method"):
         assert key in data
-    assert data["format"] == "ipfit" and data["version"] == 1 and data["dim"] == 3 and data["degree"] == 4
+    assert data["format"] == "ipfit" and data["version"] == 2 and data["dim"] == 3 and data["degree"] == 4
     assert set(data["normalization"]) == {"center", "scale"}
     path = tmp_path / "fit.json"
     poly.save(path)

@@ -30,7 +30,7 @@ def test_sphere_fit_distances_are_analytic(rng):
     poly = ipfit.fit_taubin(shape.points, degree=2)
     queries = centre + rng.uniform(-3, 3, (300, 3))
     queries = queries[np.linalg.norm(queries - centre, axis=1) > 0.05]
-    proj = project(queries, poly)
+    proj = project(poly, queries)
     expected = np.abs(np.linalg.norm(queries - centre, axis=1) - radius)
     np.testing.assert_allclose(proj.distances, expected, rtol=0, atol=1e-9)
     # The closest point lies on the ray from the centre through the query.
@@ -40,7 +40,7 @@ def test_sphere_fit_distances_are_analytic(rng):
 
 def test_centre_of_a_circle_is_at_radius_distance():
     poly = circle(radius=2.0).polynomial
-    proj = project([[0.0, 0.0]], poly)  # ∇f = 0 there: the axis fallback takes over
+    proj = project(poly, [[0.0, 0.0]])  # ∇f = 0 there: the axis fallback takes over
     assert proj.distances[0] == pytest.approx(2.0, abs=1e-12)
 
 
@@ -78,7 +78,7 @@ def test_bundled_fit_projections_lie_on_the_zero_set(boot_fit, rng):
 
 def test_distance_summary_matches_quality_mean(boot_fit):
     points, poly = boot_fit
-    summary = distance_summary(points, poly, max_points=len(points))
+    summary = distance_summary(poly, points, max_points=len(points))
     q = ipfit.quality(poly, points, ordered_contour=True)
     # quality measures data→zero-set distances on the extracted curve: same quantity, other route.
     assert summary["projected_mean"] == pytest.approx(q.data_to_zero_set, rel=1e-3)

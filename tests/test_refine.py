@@ -171,15 +171,12 @@ def test_far_field_term_adds_the_3l_far_start_and_changes_fun(rng):
     assert res.info["far_term_weight"] == RECOMMENDED.far_term_weight
 
 
-def test_deprecated_keywords_still_work(rng):
-    pts, nrm = wobbly(rng=rng)
-    with pytest.warns(DeprecationWarning, match="iterations"):
-        old = refine(pts, nrm, 4, "de", iterations=3, population=12, far_weight=0.0, rng=0)
-    new = refine(pts, nrm, 4, "de", options=opts(iterations=3, population_size=12, far_term_weight=0.0), rng=0)
-    np.testing.assert_array_equal(old.x, new.x)
-    with pytest.warns(DeprecationWarning, match="seeds"):
-        seeded = refine(pts, nrm, 4, "de", seeds=["lstsq"], iterations=1, population=8, rng=0)
-    assert set(seeded.start_distances) == {"lstsq", "3l-far"}
+def test_old_keyword_names_are_gone():
+    # Before the first release there are no deprecated aliases: an old name is a TypeError.
+    pts, nrm = wobbly()
+    for old in ("iterations", "population", "seeds", "far_weight", "F", "CR"):
+        with pytest.raises(TypeError, match=old):
+            refine(pts, nrm, 4, "de", **{old: 3})
 
 
 @pytest.mark.parametrize("method, changes, name", [
@@ -194,9 +191,9 @@ def test_an_option_that_does_not_apply_is_an_error(method, changes, name):
 
 
 def test_paper_preset_pins_the_papers_parameters():
-    resolved = PAPER.for_method("de")
-    assert resolved["mutation"] == 0.7 and resolved["recombination"] == 0.9 and resolved["iterations"] == 500
-    assert resolved["population_size"] is None and resolved["start_fraction"] == 0.1  # 4·d members, N/10 started
+    resolved = PAPER.for_method("de", dim=2)
+    assert resolved.mutation == 0.7 and resolved.recombination == 0.9 and resolved.iterations == 500
+    assert resolved.population_size is None and resolved.start_fraction == 0.1  # 4·d members, N/10 started
     assert PAPER.start_fits == ("lstsq", "3l") and PAPER.search_space == "coefficients"
     assert PAPER.far_term_weight == 0.0 and PAPER.dtype == "float64"
 

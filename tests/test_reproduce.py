@@ -63,14 +63,14 @@ def test_get_config_and_search_options():
         rep.get_config("quick", ["boot", "cat"])
 
 
-def test_cli_options_and_the_out_alias(tmp_path, capsys):
+def test_cli_options(tmp_path, capsys):
     parser = build_parser()
     default = parser.parse_args(["reproduce", "-o", "a"])
     assert (default.output, default.config, default.seed) == ("a", "full", 0)
-    for flag in ("-o", "--output", "--out"):
+    for flag in ("-o", "--output"):
         args = parser.parse_args(["reproduce", flag, "dir", "--quick", "--seed", "3", "--only", "ridge", "delta"])
         assert (args.output, args.config, args.seed, args.only) == ("dir", "quick", 3, ["ridge", "delta"])
-    assert parser.parse_args(["reproduce", "--out", "d", "--medium"]).config == "medium"
+    assert parser.parse_args(["reproduce", "--output", "d", "--medium"]).config == "medium"
     for bad in (["--quick", "--full"], ["--only", "figures"], ["--datasets", "cat"], []):
         with pytest.raises(SystemExit) as exc:
             parser.parse_args(["reproduce", *(["-o", "d"] if bad else []), *bad])
@@ -79,7 +79,7 @@ def test_cli_options_and_the_out_alias(tmp_path, capsys):
     blocker = tmp_path / "file"
     blocker.write_text("x")
     capsys.readouterr()
-    for flag in ("-o", "--out"):
+    for flag in ("-o", "--output"):
         assert main(["reproduce", flag, str(blocker), "--quick", "-q"]) == 2
         err = capsys.readouterr().err.strip()
         assert err.count("\n") == 0 and "not a folder" in err
@@ -434,7 +434,7 @@ def _without_times(value):
 @pytest.mark.slow
 def test_only_ridge_runs_its_own_adaptive_path(tmp_path):
     out = tmp_path / "only"
-    assert main(["reproduce", "--out", str(out), "--quick", "--only", "ridge", "-q"]) == 0
+    assert main(["reproduce", "--output", str(out), "--quick", "--only", "ridge", "-q"]) == 0
     results = rep.load_results(out)
     assert results["run"]["experiments"] == ["ridge"]
     assert "adaptive" not in results  # ridge ran its own adaptive DE path

@@ -17,6 +17,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import ipfit
+
 from ipfit import ImplicitPolynomial, InvalidInputError, Normalization, ReadError, basis, fit_adaptive
 from ipfit.datasets import synthetic
 from ipfit.results import (SCHEMA, dumps_result, load_result, result_view, schema_markdown, validate_result,
@@ -103,7 +105,7 @@ CORRUPTIONS = {
     "scale-below-precision": (lambda d: d["normalization"].update(center=[1e100, 0.0], scale=1.0),
                               '"normalization.scale"', "at least 1e+88"),
     "exponents-missing": (lambda d: d.pop("exponents"), '"exponents"', "got nothing"),
-    "version-newer": (_set("version", 2), '"version"', "got 2"),
+    "version-newer": (_set("version", 3), '"version"', "got 3"),
 }
 
 
@@ -322,3 +324,24 @@ def test_docs_example_is_valid():
     example = json.loads(re.search(r"## Example\n\n```json\n(.*?)```", doc, flags=re.S).group(1))
     view = result_view(example)
     assert view.polynomial([[1.0, 0.0]])[0] == pytest.approx(0.0, abs=1e-12)  # the unit circle
+
+
+def test_far_term_weight_has_one_json_key_and_version_1_files_still_read(tmp_path):
+    # Version 2 writes adaptive.far_term_weight only; a version-1 file's adaptive.far_weight is
+    # read as that key (from a file and from JSON text), its value kept.
+    shape = synthetic.ellipse(120)
+    options = ipfit.RECOMMENDED.replace(iterations=2, far_term_weight=0.3)
+    written = fit_adaptive(shape.points, shape.normals, method="polish", options=options, max_degree=2).to_dict()
+    assert written["version"] == 2 == ipfit.results.FORMAT_VERSION
+    assert written["adaptive"]["far_term_weight"] == 0.3 and "far_weight" not in written["adaptive"]
+    old = json.loads(json.dumps(written))
+    old["version"] = 1
+    old["adaptive"] = {("far_weight" if k == "far_term_weight" else k): v for k, v in old["adaptive"].items()}
+    path = tmp_path / "v1.json"
+    path.write_text(json.dumps(old))
+    for source in (path, json.dumps(old)):
+        read = load_result(source)
+        assert read["version"] == 2 and read["adaptive"]["far_term_weight"] == 0.3
+        assert "far_weight" not in read["adaptive"]
+        assert read["coefficients"] == written["coefficients"]
+    assert list(read["adaptive"]) == list(written["adaptive"])  # the key keeps its place

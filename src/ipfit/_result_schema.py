@@ -5,8 +5,9 @@ can validate a whole file; :mod:`ipfit.results` adds the reading of its polynomi
 
 The schema is one table, :data:`SCHEMA`: every documented key with its type, whether it
 is required, and its meaning. ``docs/result-format.md`` is generated from it
-(:func:`schema_markdown`). Keys are a contract: later versions add keys, never rename
-them; keys the table does not know are kept and not checked.
+(:func:`schema_markdown`). Keys are a contract: later versions add keys; a renamed key bumps
+:data:`FORMAT_VERSION` and the old name is still read; keys the table does not know are kept and
+not checked.
 """
 
 from __future__ import annotations
@@ -30,7 +31,9 @@ __all__ = ["FORMAT_NAME", "FORMAT_VERSION", "Key", "SCHEMA", "MAX_DEGREE", "MAX_
            "validate_result", "read_result_json", "check_coordinates", "schema_markdown"]
 
 FORMAT_NAME = "ipfit"
-FORMAT_VERSION = 1
+#: 2: ``adaptive.far_weight`` renamed ``adaptive.far_term_weight`` (version-1 files are still
+#: read: :func:`parse_result_text` renames the key).
+FORMAT_VERSION = 2
 _FIX = "Regenerate the result with ipfit, or repair that key."
 #: The normalisation's scale must be at least this times the centre's size (and 1e-12):
 #: (x − center) / scale then keeps 4 of float64's 16 significant digits.
@@ -195,7 +198,8 @@ SCHEMA: tuple[Key, ...] = (
     _k("adaptive.method", "string", "fixed-degree method"),
     _k("adaptive.reason", "string", "why the search stopped where it did"),
     _k("adaptive.rule", "string", '"capture", "geometric" or "paper"'),
-    _k("adaptive.far_weight", "number", "weight of the far-field term"),
+    _k("adaptive.far_term_weight", "number",
+       "weight of the far-field term (version 1 wrote it as `adaptive.far_weight`, read as this key)"),
     _k("adaptive.seconds", "number", "total time"),
     _k("adaptive.success", "boolean", "a degree was selected on a complete run (false when interrupted, or when "
        "the geometric rule found no clean degree)"),
@@ -468,6 +472,18 @@ def parse_result_text(text: str, source: str, kind: type[InvalidInputError] = In
     if not isinstance(data, dict):
         raise kind(f"{source}: not an ipfit result (a JSON object was expected, got {_got(data)}). "
                    "Pass a result written by ipfit.")
+    return _from_version_1(data)
+
+
+def _from_version_1(data: dict) -> dict:
+    """A version-1 result read as version 2: its one renamed key (``adaptive.far_weight``)
+    under the new name, so that every reader sees one spelling."""
+    adaptive = data.get("adaptive")
+    if data.get("version") == 1 and isinstance(adaptive, dict) and "far_weight" in adaptive \
+            and "far_term_weight" not in adaptive:
+        data["adaptive"] = {("far_term_weight" if key == "far_weight" else key): value
+                            for key, value in adaptive.items()}
+        data["version"] = 2
     return data
 
 

@@ -25,10 +25,10 @@ from .linear import LINEAR_METHODS, fit_linear
 from .normals import estimate_normals
 from .objective import Measures, measures as compute_measures
 from .options import (DEFAULT_DELTA, DEFAULT_EPSILON, DEFAULT_METHOD, DEFAULT_RULE, RECOMMENDED, REFINE_METHODS,
-                      SearchOptions, renamed_keywords)
+                      SearchOptions)
 from .polynomial import ImplicitPolynomial
 from .quality import Quality, looks_like_contour, quality
-from .refine import _RENAMED as _RENAMED_SEARCH, refine
+from .refine import refine
 from .repair import repair
 from .rules import RULES, DegreeRule, get_rule, select_degree, select_degree_geometric
 
@@ -158,7 +158,7 @@ class AdaptiveResult(Result):
         out["selected_degree"] = self.selected_degree
         out["degrees"] = [d.to_dict() for d in self.degrees]
         out["adaptive"] = {"epsilon": self.epsilon, "delta": self.delta, "method": self.method,
-                           "reason": self.reason, "rule": self.rule, "far_weight": self.far_term_weight,
+                           "reason": self.reason, "rule": self.rule, "far_term_weight": self.far_term_weight,
                            "seconds": self.seconds, "success": self.success, "message": self.message}
         if self.options is not None:
             out["adaptive"]["options"] = self.options.to_dict()
@@ -218,7 +218,6 @@ def _check_progress(progress):
     return progress
 
 
-@renamed_keywords(**_RENAMED_SEARCH)
 def fit_adaptive(points: ArrayLike, normals: ArrayLike | None = None, *, method: str | FitFunction = DEFAULT_METHOD,
                  options: SearchOptions | None = None, max_degree: int | None = None, min_degree: int = 2,
                  epsilon: float = DEFAULT_EPSILON, delta: float = DEFAULT_DELTA,
@@ -362,7 +361,7 @@ def check_settings(method, options, rule, epsilon, delta, min_degree, max_degree
         options = RECOMMENDED if options is None else options
         if not isinstance(options, SearchOptions):
             raise error("options", "a SearchOptions (e.g. ipfit.RECOMMENDED or ipfit.PAPER)", type(options).__name__)
-        options.for_method(method)
+        options.check_method(method)
     elif options is not None:
         name = method if isinstance(method, str) else "a callable"
         raise error("options", f"None for method {name!r}, which has no search", "SearchOptions",

@@ -37,7 +37,7 @@ from ._numeric import unit_rows
 from ._optional import require
 from ._validation import as_points, check_choice, check_degree, check_enough_points, check_int, check_real_dtype, error
 from .exceptions import ReadError
-from .linear import _PARAMS, LINEAR_METHODS, _fit_problem, _Problem, _r_of_blocks
+from .linear import LINEAR_METHODS, check_params, _fit_problem, _Problem, _r_of_blocks
 from .polynomial import ImplicitPolynomial, Normalization
 
 __all__ = ["fit_chunked", "open_cloud", "CHUNKED_METHODS", "DEFAULT_SAMPLE_SIZE"]
@@ -220,12 +220,7 @@ def fit_chunked(points, normals, degree: int, method: str = "3l", *, chunk_rows:
     degree = check_degree(degree)
     chunk_rows = check_int(chunk_rows, "chunk_rows", minimum=1)
     sample_size = check_int(sample_size, "sample_size", minimum=1)
-    checks = _PARAMS[method]
-    for name in params:
-        if name not in checks:
-            raise error(name, f"a parameter of the {method!r} fit ({', '.join(checks) or 'no parameters'})",
-                        "an unknown name")
-    params = {name: checks[name](value) for name, value in params.items()}
+    params = check_params(method, params)
     spec = LINEAR_METHODS[method]
     pts = _as_dask(points, "points", chunk_rows)
     if normals is None:

@@ -51,12 +51,12 @@ def derivatives_normalized(poly, u: NDArray[np.float64]) -> tuple[NDArray, NDArr
     return values, grads, hess
 
 
-def hessian(points: ArrayLike, poly) -> NDArray[np.float64]:
+def hessian(poly, points: ArrayLike) -> NDArray[np.float64]:
     """Hessian matrix of f at ``points`` in user coordinates, shape (N, dim, dim).
 
     >>> from ipfit import ImplicitPolynomial
     >>> circle = ImplicitPolynomial.from_coefficients([-1, 0, 0, 1, 0, 1], dim=2)
-    >>> hessian([[0.5, 0.5]], circle).tolist()
+    >>> hessian(circle, [[0.5, 0.5]]).tolist()
     [[[2.0, 0.0], [0.0, 2.0]]]
     """
     pts = as_points(points, "points", dims=(poly.dim,))
@@ -90,14 +90,14 @@ class Curvature(NamedTuple):
         return self.principal.prod(axis=1) if self.principal.shape[1] == 2 else None
 
 
-def curvature(points: ArrayLike, poly) -> Curvature:
+def curvature(poly, points: ArrayLike) -> Curvature:
     """Principal curvatures and directions of the level set of f through ``points``.
 
     Parameters
     ----------
+    poly : ImplicitPolynomial
     points : (N, dim) array in user coordinates (points on the zero set, usually, e.g. from
         :func:`ipfit.projection.project`).
-    poly : ImplicitPolynomial
 
     Returns
     -------
@@ -110,7 +110,7 @@ def curvature(points: ArrayLike, poly) -> Curvature:
     A sphere of radius 2:
 
     >>> from ipfit.datasets.synthetic import sphere
-    >>> c = curvature([[2.0, 0.0, 0.0]], sphere(radius=2.0).polynomial)
+    >>> c = curvature(sphere(radius=2.0).polynomial, [[2.0, 0.0, 0.0]])
     >>> c.mean.tolist(), c.gaussian.tolist()
     ([0.5], [0.25])
     """

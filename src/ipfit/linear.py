@@ -12,12 +12,10 @@ never through the normal equations, whose condition number is the square of the 
 
 from __future__ import annotations
 
-import functools
-import numbers
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from math import factorial
-from typing import Callable, Iterable, Iterator
+from typing import Callable, Iterable, Iterator, Mapping
 
 import numpy as np
 import scipy.linalg
@@ -27,7 +25,6 @@ from . import basis
 from ._recent import Recent, array_key
 from ._validation import (as_normals, as_points, check_choice, check_degree, check_enough_points, check_nonnegative,
                           check_positive, error)
-from .options import into_keyword, renamed_keywords
 from .exceptions import ConditioningWarning
 from .farfield import far_field_samples
 from .polynomial import ImplicitPolynomial, Normalization
@@ -40,6 +37,8 @@ __all__ = [
     "fit_gradient_one",
     "fit_linear",
     "LINEAR_METHODS",
+    "LinearMethod",
+    "check_params",
     "ridge_penalty",
     "DEFAULT_OFFSET",
     "DEFAULT_KAPPA",
@@ -331,45 +330,55 @@ def _bounded(value: float, name: str, largest: float) -> float:
     return value
 
 
-# Parameter checkers per method: the one place where linear-fit parameters are validated.
 # Offsets larger than the shape put the 3L levels on the other side of it.
 _MAX_OFFSET = 10.0
-_PARAMS: dict[str, dict[str, Callable[[float], float]]] = {
-    "lstsq": {},
-    "taubin": {},
-    "3l": {"c": _offset, "far_row_weight": lambda v: _bounded(v, "far_row_weight", 1e6)},
-    "ridge": {"c": _offset, "kappa": lambda v: _bounded(v, "kappa", 1e12),
-              "far_row_weight": lambda v: _bounded(v, "far_row_weight", 1e6)},
-    "gradient_one": {"mu": lambda v: check_positive(_bounded(v, "mu", 1e12), "mu"), "c": _offset,
-                     "far_row_weight": lambda v: _bounded(v, "far_row_weight", 1e6)},
-}
-_PARAMS["3l-far"] = _PARAMS["3l"]
+
+
+def _far_row_weight(value: float) -> float:
+    return _bounded(value, "far_row_weight", 1e6)
 
 
 @dataclass(frozen=True)
-class _Method:
+class LinearMethod:
+    """One linear fit method: its solver, whether it needs normals, and its parameters (name →
+    check returning the checked value), the one list of what ``fit_linear``, the start fits
+    (``"ridge(kappa=1e-6)"``) and ``fit_chunked`` accept."""
+
     solve: Callable[..., tuple[NDArray, dict]]
     needs_normals: bool
+    params: Mapping[str, Callable[[float], float]] = field(default_factory=dict)
     defaults: tuple[tuple[str, float], ...] = ()
 
 
-LINEAR_METHODS: dict[str, _Method] = {
-    "lstsq": _Method(_solve_lstsq, needs_normals=False),
-    "taubin": _Method(_solve_taubin, needs_normals=False),
-    "3l": _Method(_solve_3l, needs_normals=True),
-    "ridge": _Method(_solve_ridge, needs_normals=True),
-    "gradient_one": _Method(_solve_gradient_one, needs_normals=True),
-    "3l-far": _Method(_solve_3l, needs_normals=True, defaults=(("far_row_weight", DEFAULT_FAR_ROW_WEIGHT),)),
+_3L_PARAMS = {"c": _offset, "far_row_weight": _far_row_weight}
+#: The linear fit methods by name: the one registry (see docs/architecture.md, "A linear fit method").
+LINEAR_METHODS: dict[str, LinearMethod] = {
+    "lstsq": LinearMethod(_solve_lstsq, needs_normals=False),
+    "taubin": LinearMethod(_solve_taubin, needs_normals=False),
+    "3l": LinearMethod(_solve_3l, needs_normals=True, params=_3L_PARAMS),
+    "ridge": LinearMethod(_solve_ridge, needs_normals=True,
+                          params={"c": _offset, "kappa": lambda v: _bounded(v, "kappa", 1e12),
+                                  "far_row_weight": _far_row_weight}),
+    "gradient_one": LinearMethod(_solve_gradient_one, needs_normals=True,
+                                 params={"mu": lambda v: check_positive(_bounded(v, "mu", 1e12), "mu"), "c": _offset,
+                                         "far_row_weight": _far_row_weight}),
+    "3l-far": LinearMethod(_solve_3l, needs_normals=True, params=_3L_PARAMS,
+                           defaults=(("far_row_weight", DEFAULT_FAR_ROW_WEIGHT),)),
 }
 
 
-def _fit(method: str, points, normals, degree, normalization=None, **params) -> ImplicitPolynomial:
-    checks = _PARAMS[method]
+def check_params(method: str, params: Mapping[str, float]) -> dict[str, float]:
+    """``params`` of the registered linear ``method``, each checked by the method's own check."""
+    checks = LINEAR_METHODS[method].params
     for name in params:
         if name not in checks:
             allowed = ", ".join(checks) or "no parameters"
             raise error(name, f"a parameter of the {method!r} fit ({allowed})", "an unknown name")
-    params = {name: checks[name](value) for name, value in params.items()}
+    return {name: checks[name](value) for name, value in params.items()}
+
+
+def _fit(method: str, points, normals, degree, normalization=None, **params) -> ImplicitPolynomial:
+    params = check_params(method, params)
     spec = LINEAR_METHODS[method]
     problem = _prepare(points, normals, degree, method=f"fit_{method}", needs_normals=spec.needs_normals,
                        normalization=normalization)
@@ -398,26 +407,6 @@ def _fit_problem(method: str, problem: _Problem, params: dict, **extra_info) -> 
     return poly.canonical()
 
 
-def _degree_second(func):
-    """Accept the old ``fit_lstsq(points, degree, normals)`` order for one release."""
-
-    @functools.wraps(func)
-    def wrapper(points, *args, **kwargs):
-        if "degree" not in kwargs and args and isinstance(args[0], numbers.Integral) and not isinstance(args[0],
-                                                                                                        bool):
-            warnings.warn(f"{func.__name__}(points, degree, normals) is deprecated: all fits take "
-                          "(points, normals, degree)", DeprecationWarning, stacklevel=2)
-            normals = args[1] if len(args) > 1 else kwargs.pop("normals", None)
-            return func(points, normals, args[0], **kwargs)
-        return func(points, *args, **kwargs)
-
-    return wrapper
-
-
-_RENAMED = renamed_keywords(far_weight=into_keyword("far_row_weight"))
-
-
-@_degree_second
 def fit_lstsq(points: ArrayLike, normals: ArrayLike | None = None, degree: int | None = None) -> ImplicitPolynomial:
     """Classic linear fit (paper, Section 2.2): minimise ||M a|| subject to ||a|| = 1.
 
@@ -444,7 +433,6 @@ def fit_lstsq(points: ArrayLike, normals: ArrayLike | None = None, degree: int |
     return _fit("lstsq", points, normals, degree)
 
 
-@_degree_second
 def fit_taubin(points: ArrayLike, normals: ArrayLike | None = None, degree: int | None = None) -> ImplicitPolynomial:
     """Taubin's fit: the generalised eigenproblem MᵀM a = λ (Σ_k M_kᵀ M_k) a (Taubin 1991).
 
@@ -460,7 +448,6 @@ def fit_taubin(points: ArrayLike, normals: ArrayLike | None = None, degree: int 
     return _fit("taubin", points, normals, degree)
 
 
-@_RENAMED
 def fit_3l(points: ArrayLike, normals: ArrayLike, degree: int, c: float = DEFAULT_OFFSET,
            far_row_weight: float = 0.0) -> ImplicitPolynomial:
     """The 3L algorithm (Blane et al. 2000).
@@ -484,7 +471,6 @@ def fit_3l(points: ArrayLike, normals: ArrayLike, degree: int, c: float = DEFAUL
     return _fit("3l", points, normals, degree, c=c, far_row_weight=far_row_weight)
 
 
-@_RENAMED
 def fit_ridge(points: ArrayLike, normals: ArrayLike, degree: int, kappa: float = DEFAULT_KAPPA,
               c: float = DEFAULT_OFFSET, far_row_weight: float = 0.0) -> ImplicitPolynomial:
     """3L with ridge regression: a = argmin ||A a − b||² + κ aᵀDa (paper, Section 5.5).
@@ -503,7 +489,6 @@ def fit_ridge(points: ArrayLike, normals: ArrayLike, degree: int, kappa: float =
     return _fit("ridge", points, normals, degree, c=c, kappa=kappa, far_row_weight=far_row_weight)
 
 
-@_RENAMED
 def fit_gradient_one(points: ArrayLike, normals: ArrayLike, degree: int, mu: float = DEFAULT_MU,
                      far_row_weight: float = 0.0) -> ImplicitPolynomial:
     """Tasdizen's gradient-one fit: minimise Σ f(x_i)² + μ Σ ||∇f(x_i) − n_i||².
@@ -520,7 +505,6 @@ def fit_gradient_one(points: ArrayLike, normals: ArrayLike, degree: int, mu: flo
     return _fit("gradient_one", points, normals, degree, mu=mu, far_row_weight=far_row_weight)
 
 
-@_RENAMED
 def fit_linear(points: ArrayLike, normals: ArrayLike | None, degree: int, method: str = "3l", *,
                normalization: Normalization | None = None, **params: float) -> ImplicitPolynomial:
     """Dispatch to one of :data:`LINEAR_METHODS` by name (``'lstsq'``, ``'taubin'``, ``'3l'``,

@@ -5,7 +5,8 @@ when it is built. :data:`RECOMMENDED` is the recommended pipeline's search (``ip
 default) and :data:`PAPER` the paper's exact one. A method-specific setting (DE's ``mutation``,
 PSO's ``chi``, the polish's ``polish_iterations``...) left at ``None`` takes the method's
 default; set explicitly for a method that does not use it, it is an error rather than being
-silently dropped (:meth:`SearchOptions.for_method`).
+silently dropped (:meth:`SearchOptions.check_method`). :meth:`SearchOptions.for_method` resolves
+the options for one method and dimension into a :class:`MethodOptions`, which the search reads.
 
 The paper's exact pipeline is::
 
@@ -18,19 +19,21 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import warnings
 from dataclasses import dataclass
-from typing import Any, Callable, Mapping
+from typing import Any, Mapping, NamedTuple
 
 import numpy as np
 
+from .exceptions import InvalidInputError
 from .farfield import DEFAULT_TERM_WEIGHT
+from .linear import LINEAR_METHODS, check_params
 from .objective import DEFAULT_DELTA
 from ._validation import check_choice, check_int, check_nonnegative, check_positive, check_probability, error
 
 __all__ = ["SearchOptions", "RECOMMENDED", "PAPER", "PAPER_METHOD", "PAPER_RULE", "DEFAULT_METHOD",
            "DEFAULT_RULE", "DEFAULT_EPSILON", "DEFAULT_DELTA", "DEFAULT_ITERATIONS", "DEFAULT_START_FITS",
-           "REFINE_METHODS", "METHOD_DEFAULTS", "AUTO", "renamed_keywords"]
+           "REFINE_METHODS", "METHOD_DEFAULTS", "AUTO", "MethodOptions", "StartFit",
+           "parse_start_fit"]
 
 #: Refinement methods: a metaheuristic with or without the L-BFGS polish stage, or the polish
 #: alone from the best start fit. "de" and "pso" are the paper's pure variants.
@@ -71,21 +74,28 @@ AUTO: Mapping[str, Mapping[int, Any]] = {"search_points": {2: 1000, 3: 3000},
                                          "dtype": {2: "float64", 3: "float32"}}
 _USED_BY = {"mutation": ("de",), "recombination": ("de",), "chi": ("pso",), "c1": ("pso",), "c2": ("pso",),
             "polish_iterations": ("polish",)}
-_START_PARAMS = {"3l": ("c", "far_row_weight"), "3l-far": ("c", "far_row_weight"),
-                 "ridge": ("c", "kappa", "far_row_weight"), "gradient_one": ("mu", "far_row_weight", "c"),
-                 "lstsq": (), "taubin": ()}
 
 
-def parse_start_fit(spec: str, name: str = "start_fits") -> tuple[str, dict[str, float]]:
-    """Split ``"ridge(kappa=1e-6)"`` into ``("ridge", {"kappa": 1e-6})``, checking both parts.
+class StartFit(NamedTuple):
+    """One parsed start fit: its ``spec`` as written (``"ridge(kappa=1e-6)"``), the linear
+    ``method`` and its checked ``params``."""
+
+    spec: str
+    method: str
+    params: Mapping[str, float]
+
+
+def parse_start_fit(spec: str, name: str = "start_fits") -> StartFit:
+    """Split ``"ridge(kappa=1e-6)"`` into the method and its parameters, checking both with the
+    method's entry in :data:`ipfit.linear.LINEAR_METHODS` (the one registry of linear fits).
 
     >>> parse_start_fit("3l(c=0.02)")
-    ('3l', {'c': 0.02})
+    StartFit(spec='3l(c=0.02)', method='3l', params={'c': 0.02})
     """
     if not isinstance(spec, str):
         raise error(name, "linear method names such as '3l' or 'ridge(kappa=1e-6)'", repr(spec))
     method, _, rest = spec.partition("(")
-    method = check_choice(method.strip(), name, _START_PARAMS)
+    method = check_choice(method.strip(), name, LINEAR_METHODS)
     params: dict[str, float] = {}
     if rest:
         if not rest.endswith(")"):
@@ -93,14 +103,17 @@ def parse_start_fit(spec: str, name: str = "start_fits") -> tuple[str, dict[str,
         for item in filter(None, (part.strip() for part in rest[:-1].split(","))):
             key, _, value = item.partition("=")
             key = key.strip()
-            if key not in _START_PARAMS[method]:
-                allowed = ", ".join(_START_PARAMS[method]) or "no parameters"
+            if key not in LINEAR_METHODS[method].params:
+                allowed = ", ".join(LINEAR_METHODS[method].params) or "no parameters"
                 raise error(name, f"parameters of {method} ({allowed})", repr(key))
             try:
                 params[key] = float(value)
             except ValueError:
                 raise error(name, f"a number for {key}", repr(value)) from None
-    return method, params
+    try:
+        return StartFit(spec, method, check_params(method, params))
+    except InvalidInputError as exc:  # name the argument that holds the bad value
+        raise error(name, f"valid parameters of {method}", repr(spec), str(exc)) from None
 
 
 def _int_or_auto(value: Any, name: str, minimum: int) -> int | str:
@@ -177,7 +190,7 @@ class SearchOptions:
     100
     >>> PAPER.search_space, PAPER.far_term_weight
     ('coefficients', 0.0)
-    >>> SearchOptions(chi=0.7).for_method("de")
+    >>> SearchOptions(chi=0.7).check_method("de")
     Traceback (most recent call last):
     ...
     ipfit.exceptions.InvalidInputError: chi: expected a setting used by method 'de' (chi is used by pso), got chi=0.7. Leave it unset or pick a method that uses it.
@@ -266,35 +279,83 @@ class SearchOptions:
                         + ")", "an unknown name")
         return dataclasses.replace(self, **changes)
 
-    def for_method(self, method: str, dim: int | None = None) -> dict[str, Any]:
-        """Every setting resolved for ``method`` (one of :data:`REFINE_METHODS`), and "auto"
-        values for data of dimension ``dim`` when it is given.
-
-        A method-specific setting given explicitly for a method that does not use it raises
+    def check_method(self, method: str) -> str:
+        """``method`` (one of :data:`REFINE_METHODS`), checked against these settings: a
+        method-specific setting given explicitly for a method that does not use it raises
         :class:`~ipfit.InvalidInputError`.
 
-        >>> RECOMMENDED.for_method("de+polish", dim=2)["search_points"]
-        1000
+        >>> RECOMMENDED.check_method("pso")
+        'pso'
         """
         method = check_choice(method, "method", REFINE_METHODS)
         stages = set(method.split("+"))
-        out = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
         for name, users in _USED_BY.items():
-            if out[name] is not None and not stages.intersection(users):
+            value = getattr(self, name)
+            if value is not None and not stages.intersection(users):
                 raise error(name, f"a setting used by method {method!r} ({name} is used by {', '.join(users)})",
-                            f"{name}={out[name]!r}", "Leave it unset or pick a method that uses it.")
-            if out[name] is None:
-                out[name] = METHOD_DEFAULTS[name]
-        if dim is not None:
-            for name, values in AUTO.items():
-                if out[name] == "auto":
-                    out[name] = values[dim]
-        return out
+                            f"{name}={value!r}", "Leave it unset or pick a method that uses it.")
+        return method
+
+    def for_method(self, method: str, dim: int) -> MethodOptions:
+        """Every setting resolved for ``method`` (one of :data:`REFINE_METHODS`) on data of
+        dimension ``dim``: method defaults filled in, "auto" values decided, start fits parsed.
+        Checked as :meth:`check_method` does.
+
+        >>> RECOMMENDED.for_method("de+polish", dim=2).search_points
+        1000
+        """
+        method = self.check_method(method)
+        values = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+        for name in _USED_BY:
+            if values[name] is None:
+                values[name] = METHOD_DEFAULTS[name]
+        for name, by_dim in AUTO.items():
+            if values[name] == "auto":
+                values[name] = by_dim[dim]
+        values["start_fits"] = tuple(parse_start_fit(spec) for spec in self.start_fits)
+        return MethodOptions(method=method, dim=dim, **values)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready settings (tuples as lists)."""
         return {f.name: (list(v) if isinstance(v := getattr(self, f.name), tuple) else v)
                 for f in dataclasses.fields(self)}
+
+
+@dataclass(frozen=True)
+class MethodOptions:
+    """A :class:`SearchOptions` resolved for one method and dimension
+    (:meth:`SearchOptions.for_method`): what :func:`ipfit.refine` and the start fits read, every
+    field a plain value (method defaults filled in, no "auto", start fits parsed). Built from
+    checked options, so not checked again.
+    """
+
+    method: str
+    dim: int
+    population_size: int | None
+    iterations: int
+    mutation: float
+    recombination: float
+    chi: float
+    c1: float
+    c2: float
+    polish_iterations: int
+    start_fits: tuple[StartFit, ...]
+    start_fraction: float
+    search_space: str
+    far_term_weight: float
+    dtype: str
+    n_solutions: int
+    search_points: int | None
+    stall_generations: int | None
+    stall_tolerance: float
+    warm_start: bool
+    cleanup_weights: tuple[float, ...]
+
+    def to_dict(self) -> dict[str, Any]:
+        """The settings by name (start fits as written), as :attr:`ipfit.RefineResult.info` records them."""
+        out = {f.name: getattr(self, f.name) for f in dataclasses.fields(self) if f.name not in ("method", "dim")}
+        out["start_fits"] = tuple(fit.spec for fit in self.start_fits)
+        return out
 
 
 #: The recommended pipeline's search: DE + polish in whitened coordinates, all start fits,
@@ -304,50 +365,3 @@ RECOMMENDED = SearchOptions()
 #: in the raw coefficients, started from the classic and 3L fits, on the paper's distance.
 PAPER = SearchOptions(start_fits=("lstsq", "3l"), search_space="coefficients", far_term_weight=0.0, search_points=None,
                       stall_generations=None, cleanup_weights=(), dtype="float64")
-
-
-def renamed_keywords(**renames: Callable[[dict, Any], None]) -> Callable:
-    """Keep old keyword names working for one release, with a DeprecationWarning.
-
-    ``renames`` maps an old keyword to ``apply(kwargs, value)``, which rewrites the call's
-    keyword arguments (e.g. folds the value into ``options``). The wrapped function's
-    signature (``inspect.signature``) is the new one.
-    """
-
-    def decorate(func: Callable) -> Callable:
-        @functools.wraps(func)
-        def wrapper(*args, **kwargs):
-            old = [name for name in kwargs if name in renames]
-            for name in old:
-                value = kwargs.pop(name)
-                note = renames[name](kwargs, value)
-                warnings.warn(f"{func.__name__}({name}=...) is deprecated and will be removed in the next release; "
-                              f"{note}", DeprecationWarning, stacklevel=2)
-            return func(*args, **kwargs)
-
-        return wrapper
-
-    return decorate
-
-
-def into_options(field_name: str, default: SearchOptions = RECOMMENDED, convert: Callable[[Any], Any] | None = None):
-    """A :func:`renamed_keywords` rule that moves an old keyword into ``options.<field_name>``."""
-
-    def apply(kwargs: dict, value: Any) -> str:
-        base = kwargs.get("options") or default
-        kwargs["options"] = base.replace(**{field_name: convert(value) if convert else value})
-        return f"use options=SearchOptions({field_name}=...)."
-
-    return apply
-
-
-def into_keyword(new_name: str):
-    """A :func:`renamed_keywords` rule for a plain rename of a keyword."""
-
-    def apply(kwargs: dict, value: Any) -> str:
-        if new_name in kwargs:
-            raise error(new_name, "either the new or the deprecated keyword", "both")
-        kwargs[new_name] = value
-        return f"use {new_name}=... instead."
-
-    return apply

@@ -25,7 +25,7 @@ from numpy.typing import ArrayLike, NDArray
 from ._validation import as_faces, as_points, check_choice, check_int, error
 from .polynomial import ImplicitPolynomial
 from .quality import looks_like_contour, spurious_components
-from .results import ResultView, load_result, result_view  # noqa: F401  load_result/result_view: old home
+from .results import ResultView, result_view
 from .zeroset import ZeroSet, data_bounds, default_bounds, extract_zero_set
 
 __all__ = [

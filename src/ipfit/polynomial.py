@@ -358,19 +358,19 @@ class ImplicitPolynomial:
         """Closest points on the zero set and true distances: see :func:`ipfit.projection.project`."""
         from .projection import project
 
-        return project(points, self)
+        return project(self, points)
 
     def curvature(self, points: ArrayLike):
         """Curvatures of the level set through ``points``: see :func:`ipfit.curvature.curvature`."""
         from .curvature import curvature
 
-        return curvature(points, self)
+        return curvature(self, points)
 
     def hessian(self, points: ArrayLike) -> NDArray[np.float64]:
         """Hessian of f at ``points``, shape (N, dim, dim): see :func:`ipfit.curvature.hessian`."""
         from .curvature import hessian
 
-        return hessian(points, self)
+        return hessian(self, points)
 
 
 def _sphere_directions(dim: int, n: int = 64) -> NDArray[np.float64]:

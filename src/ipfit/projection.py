@@ -110,13 +110,13 @@ def _lagrange_newton(poly, q: NDArray, u: NDArray) -> tuple[NDArray, NDArray]:
     return u, on_set & parallel & np.all(np.isfinite(u), axis=1)
 
 
-def project(points: ArrayLike, poly) -> Projection:
+def project(poly, points: ArrayLike) -> Projection:
     """Nearest points on the zero set of ``poly`` and the distances to them.
 
     Parameters
     ----------
-    points : (N, dim) query points in user coordinates.
     poly : ImplicitPolynomial
+    points : (N, dim) query points in user coordinates.
 
     Returns
     -------
@@ -127,7 +127,7 @@ def project(points: ArrayLike, poly) -> Projection:
     Examples
     --------
     >>> from ipfit.datasets.synthetic import circle
-    >>> proj = project([[3.0, 4.0], [0.0, 0.5]], circle(radius=2.0).polynomial)
+    >>> proj = project(circle(radius=2.0).polynomial, [[3.0, 4.0], [0.0, 0.5]])
     >>> proj.points.round(12).tolist(), proj.distances.round(12).tolist()
     ([[1.2, 1.6], [0.0, 2.0]], [3.0, 1.5])
     """
@@ -150,19 +150,19 @@ def project(points: ArrayLike, poly) -> Projection:
     return Projection(polished, distances, converged)
 
 
-def distance_summary(points: ArrayLike, poly, max_points: int = 4000) -> dict[str, float]:
+def distance_summary(poly, points: ArrayLike, max_points: int = 4000) -> dict[str, float]:
     """Mean and max of the true (projected) and the Taubin distances of ``points`` to f = 0.
 
     At most ``max_points`` evenly strided points are used (the summary is a statistic).
 
     >>> from ipfit.datasets.synthetic import circle
-    >>> s = distance_summary([[2.0, 0.0], [0.0, 3.0]], circle().polynomial)
+    >>> s = distance_summary(circle().polynomial, [[2.0, 0.0], [0.0, 3.0]])
     >>> round(s["projected_mean"], 12), round(s["taubin_mean"], 6)   # true (1 + 2) / 2; Taubin (3/4 + 8/6) / 2
     (1.5, 1.041667)
     """
     pts = as_points(points, "points", dims=(poly.dim,))
     pts = pts[:: max(1, -(-len(pts) // max_points))]
-    true = project(pts, poly).distances
+    true = project(poly, pts).distances
     taubin = poly.taubin_distance(pts)
     return {"projected_mean": float(np.mean(true)), "projected_max": float(np.max(true)),
             "taubin_mean": float(np.mean(taubin)), "taubin_max": float(np.max(taubin)), "n_points": int(len(pts))}

@@ -35,13 +35,12 @@ from numpy.typing import ArrayLike, NDArray
 from . import basis
 from ._numeric import unit_rows
 from ._result import Result
-from ._validation import (as_normals, as_points, check_choice, check_degree, check_enough_points,
+from ._validation import (as_normals, as_points, check_degree, check_enough_points,
                           check_nonnegative, check_rng, error)
 from .farfield import FarFieldTerm
 from .objective import Measures, Objective, single_threaded_blas
 from .optimize import DifferentialEvolution, OptimizeResult, ParticleSwarm, polish as lbfgs
-from .options import (DEFAULT_DELTA, DEFAULT_METHOD, RECOMMENDED, REFINE_METHODS, SearchOptions,
-                      into_options, renamed_keywords)
+from .options import DEFAULT_DELTA, DEFAULT_METHOD, RECOMMENDED, REFINE_METHODS, MethodOptions, SearchOptions
 from .polynomial import ImplicitPolynomial, Normalization
 from .sampling import spread_subsample
 from .starts import START_POINTS, StartFits, initial_population, start_fits
@@ -117,26 +116,6 @@ class RefineResult(Result):
                 f"best_start={self.best_start!r}, nit={self.nit}, nfev={self.nfev}, success={self.success})")
 
 
-def _start_fits_from_seeds(kwargs: dict, value) -> str:
-    names = tuple(s for s in value if isinstance(s, str)) if value is not None else None
-    others = [s for s in value if not isinstance(s, str)] if value is not None else []
-    base = kwargs.get("options") or RECOMMENDED
-    kwargs["options"] = base.replace(start_fits=names if names is not None else base.start_fits)
-    if others:
-        kwargs["starts"] = others
-    return "use options=SearchOptions(start_fits=...) for linear fits and starts=[...] for polynomials."
-
-
-_RENAMED = dict(population=into_options("population_size"), seed_fraction=into_options("start_fraction"),
-                seeds=_start_fits_from_seeds, F=into_options("mutation"), CR=into_options("recombination"),
-                chi=into_options("chi"), c1=into_options("c1"), c2=into_options("c2"),
-                polish=into_options("polish_iterations"), iterations=into_options("iterations"),
-                n_solutions=into_options("n_solutions"), search_space=into_options("search_space"),
-                far_weight=into_options("far_term_weight"),
-                dtype=into_options("dtype", convert=lambda v: np.dtype(v).name if isinstance(v, type) else v))
-
-
-@renamed_keywords(**_RENAMED)
 def refine(points: ArrayLike, normals: ArrayLike, degree: int, method: str = DEFAULT_METHOD, *,
            options: SearchOptions | None = None, delta: float = DEFAULT_DELTA,
            starts: Sequence[ImplicitPolynomial | ArrayLike] | None = None, keep_clear: ArrayLike | None = None,
@@ -194,16 +173,15 @@ def refine(points: ArrayLike, normals: ArrayLike, degree: int, method: str = DEF
     unit_normals = as_normals(normals, pts, required_by="refine")
     degree = check_degree(degree)
     check_enough_points(len(pts), pts.shape[1], degree)
-    method = check_choice(method, "method", REFINE_METHODS)
     options = RECOMMENDED if options is None else options
     if not isinstance(options, SearchOptions):
         raise error("options", "a SearchOptions (e.g. ipfit.RECOMMENDED or ipfit.PAPER)", type(options).__name__)
-    settings = options.for_method(method, dim=pts.shape[1])
+    settings = options.for_method(method, dim=pts.shape[1])  # the one resolution: read below as typed fields
     delta = check_nonnegative(delta, "delta")
     gen = check_rng(rng)
     if keep_clear is not None:
         keep_clear = as_points(keep_clear, "keep_clear", dims=(pts.shape[1],))
-        if settings["far_term_weight"] <= 0:
+        if settings.far_term_weight <= 0:
             raise error("keep_clear", "a positive far_term_weight in the options", "far_term_weight=0",
                         "Set options=...replace(far_term_weight=...) or drop keep_clear.")
     if callback is not None and not callable(callback):
@@ -212,7 +190,7 @@ def refine(points: ArrayLike, normals: ArrayLike, degree: int, method: str = DEF
     # points itself, and everything else is many small products, for which BLAS worker
     # threads only cost synchronisation (badly so when other processes compete for the cores).
     with single_threaded_blas():
-        return _refine(pts, unit_normals, degree, method, settings, delta, starts, keep_clear, gen, callback)
+        return _refine(pts, unit_normals, degree, settings, delta, starts, keep_clear, gen, callback)
 
 
 def _clear_targets(u: NDArray, unit_normals: NDArray, places: NDArray) -> NDArray:
@@ -222,13 +200,13 @@ def _clear_targets(u: NDArray, unit_normals: NDArray, places: NDArray) -> NDArra
     return np.where(side < 0, -1.0, 1.0) * np.maximum(dist, 1e-12)
 
 
-def _objectives(pts, unit_normals, degree, delta, settings, keep_clear=None):
+def _objectives(pts, unit_normals, degree, delta, settings: MethodOptions, keep_clear=None):
     """The float64 objective on all points (start fits' ranking, final polish, measures), the
     search's (on a well-spread subsample of ``search_points`` points, maybe in float32) and, when
     subsampled, the float64 objective on that subsample (the first polish stage)."""
     norm = Normalization.from_points(pts)
     u = norm.apply(pts)
-    weight = settings["far_term_weight"]
+    weight = settings.far_term_weight
 
     extra = []
     if keep_clear is not None:
@@ -240,8 +218,8 @@ def _objectives(pts, unit_normals, degree, delta, settings, keep_clear=None):
         return Objective(u_, n_, degree, delta, dtype=dtype, terms=terms + extra)
 
     obj64 = build(u, unit_normals)
-    dtype = np.dtype(settings["dtype"])
-    n_search = settings["search_points"]
+    dtype = np.dtype(settings.dtype)
+    n_search = settings.search_points
     if n_search is not None and len(u) > n_search:
         keep = spread_subsample(u, n_search, rng=0)
         sub64 = build(u[keep], unit_normals[keep])
@@ -273,31 +251,31 @@ def _staged(callback, stage: str, convert: Callable[[NDArray], NDArray]):
     return inner
 
 
-def _search(method, settings, obj_pop, starts: StartFits, r, r_inv, size, gen, callback):
+def _search(settings: MethodOptions, obj_pop, starts: StartFits, r, r_inv, size, gen, callback):
     """DE or PSO from the start fits; returns the final population (coefficients) and the result."""
-    whitened = settings["search_space"] == "whitened"
+    whitened = settings.search_space == "whitened"
     to_a = (lambda y: y @ r_inv.T) if whitened else (lambda y: y)
     d = r.shape[0]
     if len(starts):
-        n_started = max(1, int(round(settings["start_fraction"] * size)))
+        n_started = max(1, int(round(settings.start_fraction * size)))
         start_y = unit_rows(starts.coefficients @ r.T if whitened else starts.coefficients)
         init = initial_population(start_y, size, min(n_started, size), gen)
     else:
         init = unit_rows(gen.standard_normal((size, d)))
     func = (lambda y, bound=None: obj_pop(to_a(y), bound)) if whitened else obj_pop
-    stage = method.split("+")[0]
-    common = dict(maxiter=settings["iterations"], rng=gen, callback=_staged(callback, stage, to_a), project=unit_rows,
-                  stall_generations=settings["stall_generations"], stall_tolerance=settings["stall_tolerance"])
+    stage = settings.method.split("+")[0]
+    common = dict(maxiter=settings.iterations, rng=gen, callback=_staged(callback, stage, to_a), project=unit_rows,
+                  stall_generations=settings.stall_generations, stall_tolerance=settings.stall_tolerance)
     if stage == "de":
-        solver = DifferentialEvolution(func, init, mutation=settings["mutation"],
-                                       recombination=settings["recombination"], screen=True, **common)
+        solver = DifferentialEvolution(func, init, mutation=settings.mutation,
+                                       recombination=settings.recombination, screen=True, **common)
     else:
-        solver = ParticleSwarm(func, init, chi=settings["chi"], c1=settings["c1"], c2=settings["c2"], **common)
+        solver = ParticleSwarm(func, init, chi=settings.chi, c1=settings.c1, c2=settings.c2, **common)
     result = solver.solve()
     return unit_rows(to_a(result.population)), result
 
 
-def _polish(obj64, sub64, pool, pool_fun, has_starts: bool, r, settings, callback):
+def _polish(obj64, sub64, pool, pool_fun, has_starts: bool, r, settings: MethodOptions, callback):
     """L-BFGS from the best candidate and, when it is another one, from the best start fit (index
     0 of the pool): the local optimum near it is sometimes the better one, and a polish is cheap.
 
@@ -310,7 +288,7 @@ def _polish(obj64, sub64, pool, pool_fun, has_starts: bool, r, settings, callbac
         starts.append(0)
     first = obj64 if sub64 is None else sub64
     staged = _staged(callback, "polish", lambda x: x)
-    polished = [lbfgs(first.value_and_grad, pool[i], maxiter=settings["polish_iterations"], precondition=r,
+    polished = [lbfgs(first.value_and_grad, pool[i], maxiter=settings.polish_iterations, precondition=r,
                       callback=staged) for i in starts]
     xs = np.array([res.x for res in polished])
     if sub64 is None:
@@ -320,7 +298,7 @@ def _polish(obj64, sub64, pool, pool_fun, has_starts: bool, r, settings, callbac
     # hundred thousand points): the budget shrinks with N, so a million points get a few steps.
     budget = max(FULL_POLISH_MIN, int(FULL_POLISH_ITERATIONS * min(1.0, FULL_POLISH_POINTS / obj64.n_points)))
     final = lbfgs(obj64.value_and_grad, xs[int(np.argmin(funs))],
-                  maxiter=min(settings["polish_iterations"], budget), precondition=r, callback=staged)
+                  maxiter=min(settings.polish_iterations, budget), precondition=r, callback=staged)
     return np.vstack([xs, final.x]), np.append(funs, final.fun), [*polished, final]
 
 
@@ -359,20 +337,20 @@ def _solutions(template, pool, pool_fun, kept, obj64, pts, unit_normals, starts:
     return out
 
 
-def _refine(pts, unit_normals, degree, method, settings, delta, given_starts, keep_clear, gen,
+def _refine(pts, unit_normals, degree, settings: MethodOptions, delta, given_starts, keep_clear, gen,
             callback) -> RefineResult:
     started = time.perf_counter()
-    dim = pts.shape[1]
+    method, dim = settings.method, pts.shape[1]
     d = basis.n_coefficients(dim, degree)
-    size = settings["population_size"] or 4 * d
+    size = settings.population_size or 4 * d
     if method.startswith("de") and size < 4:
         raise error("population_size", "at least 4 members for DE/rand/1", str(size))
     norm, obj64, obj_pop, sub64 = _objectives(pts, unit_normals, degree, delta, settings, keep_clear)
     n_search = len(pts) if sub64 is None else sub64.n_points
     # The linear start fits see what the search sees: a QR of the full cloud's 3N rows per start
     # fit would cost more than the whole search on big clouds (the bunny: 80 s of 12 QRs at degree 8).
-    starts = start_fits(pts, unit_normals, degree, norm, settings["start_fits"], given_starts,
-                        far_term=settings["far_term_weight"] > 0, max_points=min(n_search, START_POINTS))
+    starts = start_fits(pts, unit_normals, degree, norm, settings.start_fits, given_starts,
+                        far_term=settings.far_term_weight > 0, max_points=min(n_search, START_POINTS))
     if method == "polish" and not len(starts):
         raise error("starts", "at least one start fit or start polynomial for method='polish'", "none",
                     "Pass start fits in options, starts=[...], or use 'de+polish'.")
@@ -383,7 +361,7 @@ def _refine(pts, unit_normals, degree, method, settings, delta, given_starts, ke
     nit, messages, success = 0, [], True
     pool, pool_fun = starts.coefficients, starts.distances
     if method != "polish":
-        final, meta = _search(method, settings, obj_pop, starts, r, r_inv, size, gen, callback)
+        final, meta = _search(settings, obj_pop, starts, r, r_inv, size, gen, callback)
         nit, history = meta.nit, meta.history
         messages.append(f"{method.split('+')[0]}: {meta.message}")
         pool = np.concatenate([starts.coefficients, final])
@@ -392,7 +370,7 @@ def _refine(pts, unit_normals, degree, method, settings, delta, given_starts, ke
         pool_fun = obj64(pool)
         nfev += meta.nfev + len(final)
     polish_history = np.empty(0)
-    if method.endswith("polish") and settings["polish_iterations"] > 0:
+    if method.endswith("polish") and settings.polish_iterations > 0:
         xs, funs, polished = _polish(obj64, sub64, pool, pool_fun, bool(len(starts)), r, settings, callback)
         nfev += sum(res.nfev for res in polished)
         best = polished[int(np.argmin(funs))]
@@ -402,7 +380,7 @@ def _refine(pts, unit_normals, degree, method, settings, delta, given_starts, ke
         pool = np.concatenate([xs, pool])
         pool_fun = np.concatenate([funs, pool_fun])
 
-    kept = _best_distinct(pool, pool_fun, settings["n_solutions"])
+    kept = _best_distinct(pool, pool_fun, settings.n_solutions)
     template = ImplicitPolynomial(basis.exponents(dim, degree), pool[kept[0]], norm, method=method)
     solutions = _solutions(template, pool, pool_fun, kept, obj64, pts, unit_normals, starts)
     best = solutions[0]
@@ -412,7 +390,7 @@ def _refine(pts, unit_normals, degree, method, settings, delta, given_starts, ke
     success = success and bool(np.isfinite(fun))
     if not np.isfinite(fun):
         messages.append("the objective is not finite at the best candidate")
-    info = {**settings, "delta": delta, "notes": starts.notes, "n_starts": len(starts), "objective": fun,
+    info = {**settings.to_dict(), "delta": delta, "notes": starts.notes, "n_starts": len(starts), "objective": fun,
             "search_points_used": n_search}
     best = best.with_coefficients(best.coefficients, info=info)
     solutions[0] = best

@@ -74,7 +74,7 @@ def repair(entry: DegreeResult, refit: Callable[..., DegreeResult], options: Sea
     ``refit(options, start, keep_clear)`` fits the same degree again with the 'polish' method
     from the coefficients ``start``, and measures it.
     """
-    polish = min(CLEANUP_POLISH_ITERATIONS, options.for_method("polish", dim=pts.shape[1])["polish_iterations"])
+    polish = min(CLEANUP_POLISH_ITERATIONS, options.for_method("polish", dim=pts.shape[1]).polish_iterations)
     stray = _stray_distance(entry.quality.tau, pts, faces, ordered_contour)
     target = "precision" if rule.is_clean(entry.quality) else "spurious components"
     best = current = entry

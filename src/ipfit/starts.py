@@ -18,7 +18,7 @@ from ._numeric import unit_rows
 from ._validation import error
 from .exceptions import IpfitError
 from .linear import DEFAULT_FAR_ROW_WEIGHT, fit_linear
-from .options import parse_start_fit
+from .options import StartFit
 from .polynomial import ImplicitPolynomial, Normalization
 from .sampling import spread_subsample
 
@@ -63,14 +63,13 @@ class StartFits:
         return dict(zip(self.labels, map(float, self.distances)))
 
 
-def _linear(points, normals, degree, norm: Normalization, specs: Sequence[str], max_points: int):
+def _linear(points, normals, degree, norm: Normalization, fits: Sequence[StartFit], max_points: int):
     labels, coefs, notes = [], [], []
     if len(points) > max_points:
         notes.append(f"start fits on a spread subsample of {max_points} of the {len(points)} points")
         keep = spread_subsample(points, max_points, rng=0)
         points, normals = points[keep], normals[keep]
-    for spec in specs:
-        method, params = parse_start_fit(spec)
+    for spec, method, params in fits:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             try:
@@ -115,18 +114,20 @@ def _given(starts, dim: int, degree: int, norm: Normalization, d: int):
     return labels, coefs
 
 
-def start_fits(points: NDArray, unit_normals: NDArray, degree: int, norm: Normalization, names: Sequence[str],
+def start_fits(points: NDArray, unit_normals: NDArray, degree: int, norm: Normalization, fits: Sequence[StartFit],
                starts: Sequence[ImplicitPolynomial | ArrayLike] | None, far_term: bool,
                max_points: int = START_POINTS) -> StartFits:
-    """The user's polynomials first, then the named linear fits (3L with far-field rows added
+    """The user's polynomials first, then the linear start fits (parsed and checked by
+    :meth:`ipfit.SearchOptions.for_method`) (3L with far-field rows added
     when the objective has a far-field term: it starts the search nearer clean zero sets),
     fitted on a well-spread subsample of at most ``max_points`` points."""
     d = basis.n_coefficients(points.shape[1], degree)
     labels, coefs = _given(starts, points.shape[1], degree, norm, d) if starts is not None else ([], [])
-    names = list(names)
-    if far_term and names and FAR_START not in names:
-        names.append(f"{FAR_START}(far_row_weight={DEFAULT_FAR_ROW_WEIGHT:g})")
-    lin_labels, lin_coefs, notes = _linear(points, unit_normals, degree, norm, names, max_points)
+    fits = list(fits)
+    if far_term and fits and FAR_START not in (fit.spec for fit in fits):
+        fits.append(StartFit(f"{FAR_START}(far_row_weight={DEFAULT_FAR_ROW_WEIGHT:g})", FAR_START,
+                             {"far_row_weight": DEFAULT_FAR_ROW_WEIGHT}))
+    lin_labels, lin_coefs, notes = _linear(points, unit_normals, degree, norm, fits, max_points)
     labels = [*labels, *(FAR_START if lab.startswith(FAR_START + "(") else lab for lab in lin_labels)]
     return StartFits(labels, np.array(coefs + lin_coefs).reshape(-1, d), notes)
 

@@ -104,7 +104,7 @@ def add_fit_options(parser: argparse.ArgumentParser) -> None:
                         help=f"stop when smoothness improves by no more than this (default {DEFAULT_EPSILON})")
     parser.add_argument("--delta", type=nonnegative_float, default=DEFAULT_DELTA,
                         help=f"penalty weight δ of the paper's distance (default {DEFAULT_DELTA})")
-    parser.add_argument("--far-term-weight", "--far-weight", dest="far_term_weight", type=nonnegative_float,
+    parser.add_argument("--far-term-weight", dest="far_term_weight", type=nonnegative_float,
                         default=None, metavar="W",
                         help="weight of the far-field term that keeps the zero set from growing spurious sheets "
                         f"(default {RECOMMENDED.far_term_weight:g}; 0 is the paper's objective)")
@@ -209,8 +209,8 @@ def run(args: argparse.Namespace) -> int:
         normals = estimate_normals(points)
         source = "estimated"
     method, options, rule = search_settings(args)
-    resolved = options.for_method(method, dim=dim) if options is not None else {}
-    shown = Progress(progress_mode(args.quiet), resolved.get("iterations"), resolved.get("polish_iterations"))
+    resolved = options.for_method(method, dim=dim) if options is not None else None
+    shown = Progress(progress_mode(args.quiet), resolved and resolved.iterations, resolved and resolved.polish_iterations)
     progress = stop_at_iterations(shown)
     lo = degree if degree is not None else 2
     hi = degree if degree is not None else args.max_degree

@@ -16,8 +16,8 @@ name of a bundled dataset, see `ipfit datasets`) and write its points with norma
 by extension: .ply, .obj, .off, .csv, .xyz, .txt, .npy, .npz), e.g. to look at them in MeshLab or CloudCompare.
 
 The normals are the file's own (for meshes without vertex normals: area-weighted from the faces;
-for images: outward normals of the traced boundary). With --normals estimate (as in `ipfit fit`;
---estimate is the older spelling), or when the file has none, they are estimated by
+for images: outward normals of the traced boundary). With --normals estimate (as in `ipfit fit`),
+or when the file has none, they are estimated by
 k-nearest-neighbour PCA with consistent outward orientation; where the file has normals too, the
 command reports how many estimated normals point the opposite way to the file's and how many differ
 from them by more than 30°. For meshes, --outward first checks which of those reference normals
@@ -35,8 +35,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--normals", choices=("file", "estimate"), default=None,
                         help="copy the file's normals or estimate them and compare them with the file's "
                              "(default: the file's when present), as in `ipfit fit`")
-    parser.add_argument("--estimate", dest="normals", action="store_const", const="estimate",
-                        help="same as --normals estimate (older spelling, kept as an alias)")
     parser.add_argument("--k", type=positive_int, metavar="K",
                         help="neighbours per point for the estimate (default 6 in 2D, 12 in 3D)")
     parser.add_argument("--outward", action="store_true",
@@ -115,7 +113,7 @@ def _report_agreement(agreement, source: str) -> None:
 def _report_outward(points, faces, reference, estimated, source) -> None:
     import numpy as np
 
-    from ..solid import outward_vertices
+    from ..io.mesh import outward_vertices
 
     start = time.perf_counter()
     outward = outward_vertices(points, faces, reference)  # False where the reference is NaN

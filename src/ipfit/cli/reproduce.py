@@ -30,9 +30,8 @@ half a minute whose numbers mean nothing.
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    # --out: the option's name before the commands agreed on -o/--output (kept for scripts)
-    parser.add_argument("-o", "--output", "--out", dest="output", required=True, metavar="DIR",
-                        help="output folder (created); --out is an older spelling")
+    parser.add_argument("-o", "--output", dest="output", required=True, metavar="DIR",
+                        help="output folder (created)")
     mode = parser.add_mutually_exclusive_group()
     for name, cfg in CONFIGS.items():
         mode.add_argument(f"--{name}", dest="config", action="store_const", const=name,

@@ -21,13 +21,11 @@ With a tolerance tau (default 2% of the data's bounding-box diagonal):
   n_components  pieces of the zero set in the box; n_spurious: those with nothing within tau
   closed        whether the zero set closes inside the box
 --write adds them to RESULT.json as "quality" (atomically; other keys are kept as they are).
-`ipfit score RESULT.json DATA` (the data as a second argument) still works but is deprecated.
 """
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("result", metavar="RESULT.json", help="a result written by ipfit fit")
-    parser.add_argument("legacy_points", nargs="?", metavar="DATA", help=argparse.SUPPRESS)
     parser.add_argument("--points", metavar="DATA",
                         help="the data: point file or bundled dataset name (default: the data the result records)")
     parser.add_argument("--degree", type=positive_int, metavar="G",
@@ -50,7 +48,7 @@ def run(args: argparse.Namespace) -> int:
     from ..exceptions import InvalidInputError
     from ..quality import looks_like_contour, quality
     from ..results import result_view, write_result
-    from .mesh import load_points, warn
+    from .mesh import load_points
 
     if args.write and args.degree is not None:
         raise InvalidInputError("--write: expected the selected fit, got --degree too. "
@@ -60,12 +58,6 @@ def run(args: argparse.Namespace) -> int:
     if args.tau is None and args.tau_fraction <= 0:
         raise InvalidInputError(f"--tau-fraction: expected a number > 0, got {args.tau_fraction}.")
     spec = args.points
-    if args.legacy_points is not None:
-        if spec is not None:
-            raise InvalidInputError(f"--points: given twice ({args.legacy_points!r} after RESULT.json and "
-                                    f"{spec!r}). Pass the data once, with --points DATA.")
-        spec = args.legacy_points
-        warn(NAME, f"'ipfit score RESULT DATA' is deprecated; use 'ipfit score {args.result} --points {spec}'.")
     view = result_view(args.result)
     # --write updates RESULT.json in place (that is its purpose); the data must never be the target
     outputs = (Outputs([args.result], inputs=[spec, *recorded_sources(view.data)], option="--write") if args.write
@@ -78,7 +70,7 @@ def run(args: argparse.Namespace) -> int:
                 margin=args.margin, resolution=args.resolution)
     from ..projection import distance_summary
 
-    dist = distance_summary(points, poly)  # true distance (closest points) beside Taubin's estimate
+    dist = distance_summary(poly, points)  # true distance (closest points) beside Taubin's estimate
     if args.json:
         print(json.dumps({**q.to_dict(), "distance_to_zero_set": dist}, indent=1))
     else:

@@ -21,9 +21,6 @@ from .readers import FORMATS, READ_FORMATS, Format, Mesh, PointCloud, read_mesh,
 from .silhouettes import CONTOUR_SPAN, IMAGE_SUFFIXES, trace_silhouette
 from .writers import WRITE_FORMATS, write_points
 
-# the pre-package names, still used by callers outside this package
-_complete = fill_missing_normals
-
 __all__ = [
     "PointCloud",
     "Mesh",

@@ -9,7 +9,6 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .._validation import check_positive, check_probability, error
-from ..options import into_keyword, renamed_keywords
 from ._common import OptimizeResult, PopulationSolver
 
 __all__ = ["DifferentialEvolution", "distinct_indices", "trial_population", "select"]
@@ -109,9 +108,8 @@ class DifferentialEvolution(PopulationSolver):
     Per generation the draws are, in this order: the three index rows of
     :func:`distinct_indices`, a (P, d) uniform array for the crossover mask (``< CR``) and P
     integers ``j_rand`` (the component always taken from the mutant). The names follow
-    :func:`scipy.optimize.differential_evolution`; ``F``/``CR`` and ``population`` are
-    deprecated aliases. Selection is greedy, so
-    the best value never increases.
+    :func:`scipy.optimize.differential_evolution`. Selection is greedy, so the best value never
+    increases.
 
     Examples
     --------
@@ -125,8 +123,6 @@ class DifferentialEvolution(PopulationSolver):
 
     name = "de"
 
-    @renamed_keywords(F=into_keyword("mutation"), CR=into_keyword("recombination"),
-                      population=into_keyword("init"))
     def __init__(self, func: Callable[[NDArray], ArrayLike], init: ArrayLike, *, mutation: float = 0.7,
                  recombination: float = 0.9, maxiter: int = 500, rng=None,
                  callback: Callable[[OptimizeResult], Any] | None = None,

@@ -9,7 +9,6 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .._validation import check_positive, error
-from ..options import into_keyword, renamed_keywords
 from ._common import OptimizeResult, PopulationSolver
 
 __all__ = ["ParticleSwarm", "velocity_update"]
@@ -62,7 +61,6 @@ class ParticleSwarm(PopulationSolver):
 
     name = "pso"
 
-    @renamed_keywords(population=into_keyword("init"))
     def __init__(self, func: Callable[[NDArray], ArrayLike], init: ArrayLike, *, chi: float = 0.729,
                  c1: float = 2.05, c2: float = 2.05, maxiter: int = 500, rng=None,
                  callback: Callable[[OptimizeResult], Any] | None = None,
