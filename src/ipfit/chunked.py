@@ -37,7 +37,7 @@ from ._numeric import unit_rows
 from ._optional import require
 from ._validation import as_points, check_choice, check_degree, check_enough_points, check_int, check_real_dtype, error
 from .exceptions import ReadError
-from .linear import LINEAR_METHODS, check_params, _fit_problem, _Problem, _r_of_blocks
+from .linear import LINEAR_METHODS, _fit_problem, _Problem, _r_of_blocks, check_params
 from .polynomial import ImplicitPolynomial, Normalization
 
 __all__ = ["fit_chunked", "open_cloud", "CHUNKED_METHODS", "DEFAULT_SAMPLE_SIZE"]

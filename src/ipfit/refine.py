@@ -266,6 +266,7 @@ def _search(settings: MethodOptions, obj_pop, starts: StartFits, r, r_inv, size,
     stage = settings.method.split("+")[0]
     common = dict(maxiter=settings.iterations, rng=gen, callback=_staged(callback, stage, to_a), project=unit_rows,
                   stall_generations=settings.stall_generations, stall_tolerance=settings.stall_tolerance)
+    solver: DifferentialEvolution | ParticleSwarm
     if stage == "de":
         solver = DifferentialEvolution(func, init, mutation=settings.mutation,
                                        recombination=settings.recombination, screen=True, **common)

@@ -210,7 +210,8 @@ def run(args: argparse.Namespace) -> int:
         source = "estimated"
     method, options, rule = search_settings(args)
     resolved = options.for_method(method, dim=dim) if options is not None else None
-    shown = Progress(progress_mode(args.quiet), resolved and resolved.iterations, resolved and resolved.polish_iterations)
+    shown = Progress(progress_mode(args.quiet), resolved and resolved.iterations,
+                     resolved and resolved.polish_iterations)
     progress = stop_at_iterations(shown)
     lo = degree if degree is not None else 2
     hi = degree if degree is not None else args.max_degree
