@@ -130,6 +130,20 @@ def test_derived_data_is_shared_by_threads():
     assert len(got) == 4 and all(g is got[0] for g in got)  # whoever computed, one result is kept
 
 
+def test_a_cloud_travels_to_other_processes_without_its_derived_data():
+    import copy
+    import pickle
+
+    shape = synthetic.circle(40)
+    cloud = Cloud(shape.points, shape.normals, name="circle")
+    assert cloud.spacing is not None and cloud.kdtree is not None
+    for other in (pickle.loads(pickle.dumps(cloud)), copy.deepcopy(cloud)):
+        assert other.name == "circle" and np.array_equal(other.points, cloud.points)
+        assert not other.points.flags.writeable
+        assert np.array_equal(other.spacing, cloud.spacing) and other.spacing is not cloud.spacing  # derived again
+        assert other.derived("x", 1, lambda: 5) == 5
+
+
 def test_no_module_level_cache_is_left():
     with pytest.raises(ModuleNotFoundError):
         importlib.import_module("ipfit._recent")

@@ -19,9 +19,9 @@ from numpy.typing import ArrayLike, NDArray
 from . import basis
 from ._result import Result
 from ._result_schema import check_coordinates
-from .cloud import Cloud, as_cloud
 from ._validation import (as_faces, as_normals, as_points, check_choice, check_enough_points, check_int,
                           check_nonnegative, check_real, check_rng, error)
+from .cloud import Cloud, as_cloud
 from .linear import LINEAR_METHODS, fit_linear
 from .normals import estimate_normals
 from .objective import Measures, measures as compute_measures

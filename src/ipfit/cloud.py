@@ -116,6 +116,17 @@ class Cloud:
         object.__setattr__(self, "_derived", {})
         object.__setattr__(self, "_lock", threading.Lock())
 
+    def __getstate__(self) -> dict:
+        # What a cloud derived stays behind (a lock cannot travel): a copy in another process
+        # derives again what it needs.
+        return {k: v for k, v in self.__dict__.items() if k not in ("_derived", "_lock")}
+
+    def __setstate__(self, state: dict) -> None:
+        for key, value in state.items():
+            # unpickled arrays come back writable: the cloud's own copies, made read-only again
+            object.__setattr__(self, key, _read_only(value) if isinstance(value, np.ndarray) else value)
+        self._start_store()
+
     @classmethod
     def _checked(cls, points: NDArray[np.float64], unit_normals: Optional[NDArray[np.float64]],
                  faces: Optional[NDArray[np.int64]] = None) -> "Cloud":
