@@ -228,14 +228,26 @@ def test_ctrl_c_is_quiet_keeps_finished_results_and_stops_the_workers(tmp_path, 
         load_result(out / f"{name}.json")
 
 
-def test_ctrl_c_while_the_cluster_starts_is_held_not_lost(tmp_path):
-    """The cluster starts with SIGINT blocked (its workers must not die of it): a Ctrl-C then
-    waits and stops the batch once the cluster is up, exit 130, quietly; it is never dropped."""
+def test_ctrl_c_while_the_cluster_starts_kills_no_worker(tmp_path):
+    """A Ctrl-C as the first worker processes start reaches them too: they start with SIGINT
+    ignored, so none dies with a traceback; the batch process ignores that one as well (the
+    documented price) and runs on."""
     psutil = pytest.importorskip("psutil")
     out = tmp_path / "out"
-    # signalled as soon as the first worker process exists: the cluster is starting
-    _interrupt_batch(out, 40, lambda proc: bool(psutil.Process(proc.pid).children()))
-    assert len(list(out.glob("[!.]*.json"))) < 40  # stopped early, not after all forty shapes
+    cmd = [sys.executable, "-m", "ipfit.cli", "batch", "generated:2", "-o", str(out), "--workers", "2",
+           "--max-degree", "2", "--method", "3l"]
+    proc = subprocess.Popen(cmd, env=_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+    deadline = time.monotonic() + 120
+    while proc.poll() is None and not psutil.Process(proc.pid).children() and time.monotonic() < deadline:
+        time.sleep(0.02)
+    assert proc.poll() is None, proc.communicate()
+    os.killpg(proc.pid, signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert "Traceback" not in err and "Exception ignored" not in err and "KeyboardInterrupt" not in err, err
+    assert proc.returncode in (0, 130), err
+    if proc.returncode == 0:  # the signal came while the cluster started: the batch ran on, whole
+        assert {r["status"] for r in _summary(out)} == {"ok"}
 
 
 # -- a core install --------------------------------------------------------------------------------------

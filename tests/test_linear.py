@@ -9,7 +9,6 @@ from scipy.spatial.transform import Rotation
 import ipfit
 from ipfit import basis
 from ipfit.datasets import synthetic
-from ipfit._recent import Recent
 from ipfit.linear import LINEAR_METHODS, fit_linear, ridge_penalty
 
 EXACT_SHAPES = {
@@ -216,16 +215,16 @@ def test_blocked_qr_equals_the_one_shot_qr(monkeypatch, method):
     shape = synthetic.ellipsoid(400, axes=(1.5, 1.0, 0.7))
     pts = shape.points + 0.02 * np.random.default_rng(1).normal(size=shape.points.shape)
     one_shot = ipfit.fit_linear(pts, shape.normals, 4, method)
-    monkeypatch.setattr(ipfit.linear, "_BLOCK_ROWS", 97)
-    monkeypatch.setattr(ipfit.linear, "_FACTORS", Recent(8))  # factor again, in blocks
+    monkeypatch.setattr(ipfit.linear, "_BLOCK_ROWS", 97)  # arrays: nothing kept, so factored again, in blocks
     blocked = ipfit.fit_linear(pts, shape.normals, 4, method)
     np.testing.assert_allclose(blocked.coefficients, one_shot.coefficients, rtol=1e-9, atol=1e-12)
 
 
 def test_start_fits_share_their_big_factors_and_solve_the_stacked_systems(monkeypatch, rng):
-    # The search's dozen start fits factor each big block once (3L at each offset, the values M
-    # and the gradient rows), and each fit is still the least-squares solution of its whole
-    # stacked system, here against numpy's lstsq of the explicit rows.
+    # The search's dozen start fits on one Cloud factor each big block once (3L at each offset,
+    # the values M and the gradient rows), the same fits of arrays each factor their own (nothing
+    # is kept across calls) to the same coefficients, and each fit is still the least-squares
+    # solution of its whole stacked system, here against numpy's lstsq of the explicit rows.
     from ipfit.options import DEFAULT_START_FITS, parse_start_fit
 
     shape = synthetic.torus(500, rng=rng)
@@ -233,10 +232,20 @@ def test_start_fits_share_their_big_factors_and_solve_the_stacked_systems(monkey
     factored = []
     real = ipfit.linear._r_of_blocks
     monkeypatch.setattr(ipfit.linear, "_r_of_blocks", lambda blocks: factored.append(1) or real(blocks))
-    monkeypatch.setattr(ipfit.linear, "_FACTORS", Recent(8))
-    fits = {spec: fit_linear(pts, shape.normals, 4, parse_start_fit(spec).method, **parse_start_fit(spec).params)
-            for spec in DEFAULT_START_FITS}
-    assert len(factored) == 5  # 3L at c = 0.05, 0.02, 0.1; M; the gradient rows (Taubin factors its own)
+    cloud = ipfit.Cloud(pts, shape.normals)
+
+    def start_fits(data, normals):
+        return {spec: fit_linear(data, normals, 4, parse_start_fit(spec).method, **parse_start_fit(spec).params)
+                for spec in DEFAULT_START_FITS}
+
+    fits = start_fits(cloud, None)
+    assert len(DEFAULT_START_FITS) == 11 and len(factored) == 5  # 3L at c = 0.05, 0.02, 0.1; M; the gradient rows
+    assert start_fits(cloud, None).keys() == fits.keys() and len(factored) == 5  # the cloud kept all five
+    del factored[:]
+    from_arrays = start_fits(pts, shape.normals)
+    assert len(factored) == 13  # each fit its own: 3L and ridge one each, gradient-one two, lstsq one (Taubin none)
+    for spec, poly in from_arrays.items():
+        assert poly.coefficients.tobytes() == fits[spec].coefficients.tobytes(), spec
     u = fits["3l"].normalization.apply(pts)
     m, dm = basis.monomials_and_gradients(u, 4)
     for spec, a_rows, b_rows in [

@@ -8,6 +8,7 @@ import math
 import numpy as np
 import pytest
 
+import ipfit
 from ipfit import InvalidInputError
 from ipfit.datasets import synthetic
 from ipfit.quality import Quality, looks_like_contour, quality
@@ -174,7 +175,7 @@ def test_far_distances_enter_the_chamfer_mean():
     assert q.zero_set_to_data == pytest.approx(0.8, abs=0.005)
 
 
-def test_measurements_are_reused_only_for_the_same_polynomial_data_and_options(monkeypatch):
+def test_measurements_are_reused_only_for_the_same_polynomial_cloud_and_options(monkeypatch):
     import importlib
 
     from ipfit.quality import stray_samples
@@ -182,22 +183,22 @@ def test_measurements_are_reused_only_for_the_same_polynomial_data_and_options(m
     quality_module = importlib.import_module("ipfit.quality")  # the package's `quality` is the function
 
     shape = synthetic.circle(60)
+    cloud = ipfit.Cloud(shape.points)
     wide = synthetic.from_terms(2, 2, {(2, 0): 1.0, (0, 2): 1.0, (0, 0): -1.3})  # radius 1.14
     extractions = []
     real = quality_module.extract_zero_set
     monkeypatch.setattr(quality_module, "extract_zero_set", lambda *a, **k: extractions.append(1) or real(*a, **k))
-    q = quality(wide, shape.points)
+    q = quality(wide, cloud)
     assert len(extractions) == 1 and q.recall == 0.0
     # the repair's stray samples of the degree just judged: the same measurement
-    assert len(stray_samples(wide, shape.points)) > 0 and len(extractions) == 1
-    assert quality(wide, shape.points) == q and len(extractions) == 1
-    # other options, other points, points changed in place: measured again
-    assert quality(wide, shape.points, tau=0.2).recall == 1.0 and len(extractions) == 2
-    assert quality(wide, 1.14 * shape.points).recall == 1.0 and len(extractions) == 3
-    moved = shape.points.copy()  # equal data, another array: the same measurement
-    assert quality(wide, moved) == q and len(extractions) == 3
-    moved += 0.5  # changed in place
-    assert quality(wide, moved).recall > 0.0 and len(extractions) == 4
+    assert len(stray_samples(wide, cloud)) > 0 and len(extractions) == 1
+    assert quality(wide, cloud) == q and len(extractions) == 1
+    # other options, another cloud of the same points: measured again
+    assert quality(wide, cloud, tau=0.2).recall == 1.0 and len(extractions) == 2
+    assert quality(wide, ipfit.Cloud(shape.points)) == q and len(extractions) == 3
+    # arrays: a transient cloud per call, nothing kept across calls
+    assert quality(wide, shape.points) == q and quality(wide, shape.points) == q and len(extractions) == 5
+    assert quality(wide, ipfit.Cloud(1.14 * shape.points)).recall == 1.0 and len(extractions) == 6
 
 
 def test_concurrent_measurements_match_sequential_ones():

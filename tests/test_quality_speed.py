@@ -13,6 +13,7 @@ import math
 import numpy as np
 import pytest
 
+import ipfit
 from ipfit.datasets import synthetic
 from ipfit.quality import quality, spurious_components
 from ipfit.zeroset import ZeroSet, extract_zero_set
@@ -214,27 +215,26 @@ def test_kernel_matches_trimesh_closest_points(rng):
 
 def test_threads_and_caches_do_not_change_a_measurement(monkeypatch):
     # A zero set of some 60,000 samples (above the threaded-query threshold) against a mesh: the
-    # same Quality threaded or not, and with its cached data side forgotten; the cache tells a
-    # mesh from the bare points it is built on.
+    # same Quality threaded or not, and on a new cloud (nothing kept) as on one that keeps its data
+    # side; a cloud with faces is measured against them, one without against the bare points.
     import importlib
 
     import trimesh
 
-    from ipfit._recent import forget_all
-
     qmod = importlib.import_module("ipfit.quality")
+    from ipfit import _distance
+
     mesh = trimesh.creation.icosphere(subdivisions=3, radius=1.0)
     pts, faces = np.asarray(mesh.vertices), np.asarray(mesh.faces)
     wobbly = synthetic.from_terms(3, 4, {(2, 0, 0): 1 / 1.1 ** 2, (0, 2, 0): 1.0, (0, 0, 2): 1 / 0.9 ** 2,
                                          (2, 2, 0): 0.3, (0, 0, 0): -1.0})
     details = qmod._measure(wobbly, pts, faces=faces, details=True)
-    engine = importlib.import_module("ipfit._distance")
-    assert len(details[2].points) > engine._THREADED_QUERIES
-    threaded = quality(wobbly, pts, faces=faces).to_dict()
-    forget_all()
-    monkeypatch.setattr(engine, "_THREADED_QUERIES", 10**12)
+    assert len(details[2].points) > _distance._THREADED_QUERIES
+    mesh_cloud = ipfit.Cloud(pts, faces=faces)
+    threaded = quality(wobbly, mesh_cloud).to_dict()
+    monkeypatch.setattr(_distance, "_THREADED_QUERIES", 10**12)
     assert quality(wobbly, pts, faces=faces).to_dict() == threaded
+    assert quality(wobbly.with_coefficients(2 * wobbly.coefficients), mesh_cloud).to_dict() == threaded  # data side kept
     bare = quality(wobbly, pts)
     assert bare.reference == "points" and threaded["reference"] == "faces"
-    forget_all()
-    assert quality(wobbly, pts).to_dict() == bare.to_dict()
+    assert quality(wobbly, ipfit.Cloud(pts)).to_dict() == bare.to_dict()

@@ -250,14 +250,14 @@ def test_a_repair_stops_at_the_first_weight_that_does_not_help():
 
     for first in (spurious, still):  # the first weight changes nothing, or nothing that counts
         refit, calls = scripted(first, cleaner, cleaner)
-        kept = repair(spurious, refit, options, circle.points, None, True, CAPTURE)
+        kept = repair(spurious, refit, options, ipfit.Cloud(circle.points), True, CAPTURE)
         assert calls == [1.0] and kept.quality.n_spurious == 1 and len(kept.cleanup) == 1
     refit, calls = scripted(cleaner, spurious, spurious)  # the first weight cleans it: done
-    kept = repair(spurious, refit, options, circle.points, None, True, CAPTURE)
+    kept = repair(spurious, refit, options, ipfit.Cloud(circle.points), True, CAPTURE)
     assert calls == [1.0] and kept.quality.n_spurious == 0
     better = dataclasses.replace(still, quality=dataclasses.replace(still.quality, f_score=0.99 * cleaner.quality.f_score))
     refit, calls = scripted(better, cleaner, spurious)  # an improvement, not yet clean: the next weight
-    kept = repair(spurious, refit, options, circle.points, None, True, CAPTURE)
+    kept = repair(spurious, refit, options, ipfit.Cloud(circle.points), True, CAPTURE)
     assert calls == [1.0, 10.0] and kept.quality.n_spurious == 0
 
 

@@ -21,6 +21,7 @@ from ._result import Result
 from ._result_schema import check_coordinates
 from ._validation import (as_faces, as_normals, as_points, check_choice, check_enough_points, check_int,
                           check_nonnegative, check_real, check_rng, error)
+from .cloud import Cloud, as_cloud
 from .linear import LINEAR_METHODS, fit_linear
 from .normals import estimate_normals
 from .objective import Measures, measures as compute_measures
@@ -179,15 +180,16 @@ class _Fitter:
         self.options = options
         self.previous: ImplicitPolynomial | None = None
 
-    def __call__(self, points, normals, degree, options: SearchOptions | None = None, extra_starts=(),
+    def __call__(self, cloud: Cloud, normals, degree, options: SearchOptions | None = None, extra_starts=(),
                  method: str | None = None, keep_clear=None):
+        # ``normals`` as the fit was given them (made unit once); the cloud holds them normalised again.
         if callable(self.method):
-            poly = self.method(points, normals, degree)
+            poly = self.method(cloud.points, normals, degree)
             if not isinstance(poly, ImplicitPolynomial):
                 raise error("method", "a callable returning an ImplicitPolynomial", type(poly).__name__)
             return poly, (), 0, 0, True, "custom fit"
         if self.method in LINEAR_METHODS:
-            return fit_linear(points, normals, degree, self.method), (), 0, 0, True, "linear fit"
+            return fit_linear(cloud, None, degree, self.method), (), 0, 0, True, "linear fit"
         options = options or self.options
 
         def report(state):
@@ -197,7 +199,7 @@ class _Fitter:
         starts = list(extra_starts)
         if options.warm_start and self.previous is not None and self.previous.degree < degree:
             starts.append(_embed(self.previous, degree))
-        result = refine(points, normals, degree, method=method or self.method, options=options, delta=self.delta,
+        result = refine(cloud, None, degree, method=method or self.method, options=options, delta=self.delta,
                         starts=starts or None, keep_clear=keep_clear, rng=self.rng,
                         callback=report if self.progress is not None else None)
         return (result.polynomial, tuple(result.solutions), result.nit, result.nfev, result.success,
@@ -218,7 +220,7 @@ def _check_progress(progress):
     return progress
 
 
-def fit_adaptive(points: ArrayLike, normals: ArrayLike | None = None, *, method: str | FitFunction = DEFAULT_METHOD,
+def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *, method: str | FitFunction = DEFAULT_METHOD,
                  options: SearchOptions | None = None, max_degree: int | None = None, min_degree: int = 2,
                  epsilon: float = DEFAULT_EPSILON, delta: float = DEFAULT_DELTA,
                  rule: str | DegreeRule = DEFAULT_RULE,
@@ -228,8 +230,10 @@ def fit_adaptive(points: ArrayLike, normals: ArrayLike | None = None, *, method:
 
     Parameters
     ----------
-    points : (N, 2) or (N, 3) array.
-    normals : (N, dim) array, or None to estimate them (:func:`ipfit.estimate_normals`).
+    points : (N, 2) or (N, 3) array, or a :class:`~ipfit.Cloud` (e.g. :func:`ipfit.load`'s): then
+        its normals (estimated when it has none) and faces are used.
+    normals : (N, dim) array, or None to estimate them (:func:`ipfit.estimate_normals`); None
+        with a cloud.
     method : a fixed-degree method: a refinement ('de+polish' (default), 'pso+polish', 'de',
         'pso', 'polish'), a linear fit ('lstsq', 'taubin', '3l', 'ridge', 'gradient_one',
         '3l-far'), or a callable ``(points, normals, degree) -> ImplicitPolynomial`` (use
@@ -254,7 +258,8 @@ def fit_adaptive(points: ArrayLike, normals: ArrayLike | None = None, *, method:
         distances), stops once the shape is captured or two degrees in a row gain little, and
         selects the lowest clean degree within 0.01 of the best clean F-score. 'geometric' is
         the paper's rule restricted to clean degrees.
-    faces, ordered_contour : describe the data's shape for the quality measures (mesh faces;
+    faces, ordered_contour : describe the data's shape for the quality measures (mesh faces, None
+        with a cloud;
         a 2D contour in order, detected by :func:`ipfit.quality.looks_like_contour` when
         None), used by the 'capture' and 'geometric' rules.
     rng : seed or Generator (SPEC 7), passed to the metaheuristics.
@@ -282,7 +287,8 @@ def fit_adaptive(points: ArrayLike, normals: ArrayLike | None = None, *, method:
     >>> result.selected_degree, result.success
     (2, True)
     """
-    pts = as_points(points)
+    given = as_cloud(points, normals, faces=faces) if isinstance(points, Cloud) else None  # refuses normals, faces
+    pts = given.points if given is not None else as_points(points)
     check_coordinates(pts)  # the result must be readable: refuse up front what it could not record
     dim = pts.shape[1]
     method, options, rule, epsilon, delta, min_degree = check_settings(method, options, rule, epsilon, delta,
@@ -292,8 +298,16 @@ def fit_adaptive(points: ArrayLike, normals: ArrayLike | None = None, *, method:
     if ordered_contour is not None and not isinstance(ordered_contour, (bool, np.bool_)):
         raise error("ordered_contour", "True, False or None", repr(ordered_contour))
     top = _top_degree(len(pts), dim, min_degree, max_degree, rule)
-    faces = None if faces is None else as_faces(faces, len(pts), dim)
-    unit = estimate_normals(pts) if normals is None else as_normals(normals, pts)
+    if given is not None:
+        faces, unit = given.faces, (estimate_normals(pts) if given.normals is None else given.unit_normals)
+    else:
+        faces = None if faces is None else as_faces(faces, len(pts), dim)
+        unit = estimate_normals(pts) if normals is None else as_normals(normals, pts)
+    # One cloud for the whole fit: it keeps what every degree and repair round reuses (far-field
+    # samples, start fits' R factors, spacing, the data's side of the quality measurements). Its
+    # normals are ``unit`` normalised once more, as refine and the linear fits have always done
+    # with the normals they are given: that rounding is part of every fit's coefficients.
+    cloud = Cloud._checked(pts, as_normals(unit, pts), faces)
     measured = rule.measured
     if measured and ordered_contour is None:
         ordered_contour = dim == 2 and looks_like_contour(pts)
@@ -306,15 +320,15 @@ def fit_adaptive(points: ArrayLike, normals: ArrayLike | None = None, *, method:
         if progress is not None:
             progress({"event": "degree_start", "degree": degree})
         try:
-            entry = _fit_degree(fitter, pts, unit, degree, delta, measured, faces, ordered_contour)
+            entry = _fit_degree(fitter, cloud, unit, degree, delta, measured, ordered_contour)
             best_f = rule.best_clean_f(results)
             if measured and fitter.options is not None and not rule.is_done(entry, best_f):
                 def refit(options, start, keep_clear, degree=degree):
-                    return _fit_degree(fitter, pts, unit, degree, delta, True, faces, ordered_contour,
+                    return _fit_degree(fitter, cloud, unit, degree, delta, True, ordered_contour,
                                        options=options, extra_starts=[start], method="polish",
                                        keep_clear=keep_clear)
 
-                entry = repair(entry, refit, fitter.options, pts, faces, ordered_contour, rule, best_f)
+                entry = repair(entry, refit, fitter.options, cloud, ordered_contour, rule, best_f)
         except KeyboardInterrupt:
             if not results:
                 raise
@@ -400,14 +414,14 @@ def _top_degree(n_points: int, dim: int, min_degree: int, max_degree: int | None
     return top
 
 
-def _fit_degree(fitter: _Fitter, pts, unit, degree, delta, measured: bool, faces, ordered_contour, *, options=None,
+def _fit_degree(fitter: _Fitter, cloud: Cloud, unit, degree, delta, measured: bool, ordered_contour, *, options=None,
                 extra_starts=(), method=None, keep_clear=None) -> DegreeResult:
     t0 = time.perf_counter()
-    poly, solutions, nit, nfev, success, message = fitter(pts, unit, degree, options, extra_starts, method,
+    poly, solutions, nit, nfev, success, message = fitter(cloud, unit, degree, options, extra_starts, method,
                                                           keep_clear)
-    m = compute_measures(poly, pts, unit, delta=delta)
+    m = compute_measures(poly, cloud.points, unit, delta=delta)
     poly = poly.with_coefficients(poly.coefficients, measures=m.to_dict())
-    q = quality(poly, pts, faces=faces, ordered_contour=ordered_contour) if measured else None
+    q = quality(poly, cloud, ordered_contour=ordered_contour) if measured else None
     return DegreeResult(x=poly.coefficients, fun=float(m.distance), nit=nit, nfev=nfev, success=success,
                         message=message, degree=degree, polynomial=poly, measures=m,
                         seconds=time.perf_counter() - t0, quality=q, solutions=solutions)

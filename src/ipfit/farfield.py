@@ -26,8 +26,8 @@ from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
 from . import basis
-from ._recent import Recent, array_key
 from ._validation import as_matching, as_points, check_nonnegative, check_positive, error
+from .cloud import Cloud, as_cloud
 
 __all__ = ["far_field_samples", "term_samples", "term_sample_count", "fused_rows", "FarFieldTerm", "DEFAULT_MARGIN",
            "DEFAULT_CLEARANCE", "DEFAULT_RATIO", "DEFAULT_TERM_WEIGHT"]
@@ -62,7 +62,7 @@ _TINY = float(np.finfo(np.float64).tiny)
 DEFAULT_TERM_WEIGHT = 0.1
 
 
-def far_field_samples(u: NDArray[np.float64], normals: NDArray[np.float64], *, c: float = 0.05,
+def far_field_samples(u: NDArray[np.float64] | Cloud, normals: NDArray[np.float64] | None = None, *, c: float = 0.05,
                       margin: float = DEFAULT_MARGIN, per_axis: int | None = None,
                       clearance: float = DEFAULT_CLEARANCE) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Grid samples of the data's box (plus ``margin``) away from the data, with signed distances.
@@ -72,8 +72,9 @@ def far_field_samples(u: NDArray[np.float64], normals: NDArray[np.float64], *, c
 
     Parameters
     ----------
-    u : (N, dim) points (normalised coordinates in the fits).
-    normals : (N, dim) unit normals at ``u``.
+    u : (N, dim) points (normalised coordinates in the fits), or a :class:`~ipfit.Cloud` (its
+        points and unit normals).
+    normals : (N, dim) unit normals at ``u``; None with a cloud.
     c : the 3L offset; samples within ``clearance · c`` of the data are dropped.
 
     Returns
@@ -91,8 +92,7 @@ def far_field_samples(u: NDArray[np.float64], normals: NDArray[np.float64], *, c
     >>> bool(np.all(targets[inside] < 0) and np.all(targets[~inside] > 0))
     True
     """
-    u = as_points(u, "u")
-    normals = as_matching(normals, u)
+    u, normals = _points_and_normals(u, normals, "far_field_samples")
     dim = u.shape[1]
     lo, hi = u.min(axis=0), u.max(axis=0)
     pad = margin * float((hi - lo).max())
@@ -105,6 +105,14 @@ def far_field_samples(u: NDArray[np.float64], normals: NDArray[np.float64], *, c
     grid, dist, nearest = grid[keep], dist[keep], nearest[keep]
     side = np.einsum("ij,ij->i", grid - u[nearest], normals[nearest])
     return grid, np.where(side < 0, -dist, dist)
+
+
+def _points_and_normals(u, normals, required_by: str) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    if isinstance(u, Cloud):
+        cloud = as_cloud(u, normals, name="u", required_by=required_by)
+        return cloud.points, cloud.unit_normals
+    u = as_points(u, "u")
+    return u, as_matching(normals, u)  # arrays: the normals as given (the fits pass unit normals)
 
 
 def term_sample_count(n_points: int, dim: int) -> int:
@@ -149,7 +157,7 @@ def _spread(candidates: NDArray[np.float64], reach: NDArray[np.float64], count: 
     return np.sort(chosen)
 
 
-def term_samples(u: NDArray[np.float64], normals: NDArray[np.float64], *, count: int | None = None,
+def term_samples(u: NDArray[np.float64] | Cloud, normals: NDArray[np.float64] | None = None, *, count: int | None = None,
                  per_axis: int | None = None, **kwargs) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """The far-field term's samples: ``count`` nodes of a fine grid, evenly spread away from the data.
 
@@ -161,6 +169,9 @@ def term_samples(u: NDArray[np.float64], normals: NDArray[np.float64], *, count:
     :data:`SPREAD_OFFSET` × the data's mean radius: a deterministic stratification of the free
     space, densest where spurious loops were seen. Other keywords go to :func:`far_field_samples`.
 
+    Given a :class:`~ipfit.Cloud` (its points and unit normals), the cloud keeps the samples for
+    the next call with the same keywords: the farthest-point selection is the costly part.
+
     Examples
     --------
     >>> from ipfit.datasets.synthetic import circle
@@ -169,11 +180,15 @@ def term_samples(u: NDArray[np.float64], normals: NDArray[np.float64], *, count:
     >>> len(samples), bool(np.all(np.abs(targets) > 0.15))
     (200, True)
     """
+    if isinstance(u, Cloud):
+        cloud = as_cloud(u, normals, name="u", required_by="term_samples")
+        key = (count, per_axis, tuple(sorted(kwargs.items())))
+        samples, targets = cloud.derived("term_samples", key, lambda: _term_samples(
+            cloud.points, cloud.unit_normals, count, per_axis, kwargs))
+        return samples.copy(), targets.copy()  # copies: the cloud's stay as computed
     u = np.ascontiguousarray(u, dtype=np.float64)
     normals = np.ascontiguousarray(normals, dtype=np.float64)
-    key = (array_key(u), array_key(normals), count, per_axis, tuple(sorted(kwargs.items())))
-    samples, targets = _TERM_SAMPLES.get(key, lambda: _term_samples(u, normals, count, per_axis, kwargs))
-    return samples.copy(), targets.copy()
+    return _term_samples(u, normals, count, per_axis, kwargs)
 
 
 def _term_samples(u, normals, count, per_axis, kwargs) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -183,11 +198,6 @@ def _term_samples(u, normals, count, per_axis, kwargs) -> tuple[NDArray[np.float
     keep = _spread(candidates, np.abs(targets) + SPREAD_OFFSET * radius,
                    term_sample_count(len(u), dim) if count is None else int(count))
     return candidates[keep], targets[keep]
-
-
-# The samples depend on the data alone, and an adaptive fit builds the same term at every degree
-# (twice when the search is subsampled); the farthest-point selection is its costly part.
-_TERM_SAMPLES = Recent(4)
 
 
 class FarFieldTerm:
@@ -229,9 +239,10 @@ class FarFieldTerm:
         self._scale = np.sign(self.targets) / (self.ratio * np.abs(self.targets))
 
     @classmethod
-    def from_data(cls, u: NDArray, normals: NDArray, degree: int, weight: float, *, ratio: float = DEFAULT_RATIO,
-                  **kwargs) -> "FarFieldTerm":
-        """Build the term from the data (samples from :func:`term_samples`; keywords go there)."""
+    def from_data(cls, u: NDArray | Cloud, normals: NDArray | None, degree: int, weight: float, *,
+                  ratio: float = DEFAULT_RATIO, **kwargs) -> "FarFieldTerm":
+        """Build the term from the data (samples from :func:`term_samples`, which a
+        :class:`~ipfit.Cloud` keeps; keywords go there)."""
         samples, targets = term_samples(u, normals, **kwargs)
         return cls(samples, targets, degree, weight, ratio=ratio)
 

@@ -8,6 +8,10 @@ outside) carrying the normalisation and the solver's diagnostics in ``info``.
 
 Systems are solved by QR of the stacked (augmented) matrix and a small triangular solve,
 never through the normal equations, whose condition number is the square of the system's.
+
+Every fit takes arrays or a :class:`~ipfit.Cloud` as its points (then ``normals`` is None: the
+cloud's own are used). A cloud keeps the R factors of the big row blocks, so the fits on one
+cloud (the dozen start fits of a search) factor each block once.
 """
 
 from __future__ import annotations
@@ -22,10 +26,10 @@ import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 
 from . import basis
-from ._recent import Recent, array_key
-from ._validation import (as_normals, as_points, check_choice, check_degree, check_enough_points, check_nonnegative,
+from ._validation import (check_choice, check_degree, check_enough_points, check_nonnegative,
                           check_positive, error)
 from .exceptions import ConditioningWarning
+from .cloud import Cloud, as_cloud
 from .farfield import far_field_samples
 from .polynomial import ImplicitPolynomial, Normalization
 
@@ -75,6 +79,7 @@ class _Problem:
     normals: NDArray[np.float64] | None  # unit normals (N, dim)
     normalization: Normalization
     degree: int
+    cloud: Cloud | None = None  # the data in user coordinates, which keeps the R factors of its rows
 
     @property
     def dim(self) -> int:
@@ -97,13 +102,15 @@ class _Problem:
         return make(self, *args)
 
     def r_of(self, make: Callable[..., Iterable[NDArray]], *args) -> NDArray:
-        """R of the rows ``make(problem, *args)``, kept for the next fits on the same data: the
+        """R of the rows ``make(problem, *args)``, kept by the cloud for the next fits on it: the
         start fits of a search solve a dozen systems that share their big blocks (3L and its
         ridge variants one, gradient-one's variants and least squares two), so each big QR is
         done once and each fit adds only its own small rows."""
-        key = (array_key(self.u), None if self.normals is None else array_key(self.normals), self.degree,
-               make.__name__, args)
-        return _FACTORS.get(key, lambda: _r_of_blocks(self.blocks(make, *args)))
+        if self.cloud is None:
+            return _r_of_blocks(self.blocks(make, *args))
+        # The rows depend on the cloud, the coordinates it is fitted in, the degree and the blocks.
+        key = (self.normalization.center.tobytes(), self.normalization.scale, self.degree, make.__name__, args)
+        return self.cloud.derived("r_factor", key, lambda: _r_of_blocks(self.blocks(make, *args)))
 
     def power_sums(self, top: int) -> NDArray[np.float64]:
         """γ_t = Σ_i ||u_i||^{2t} for t = 0..top (the ridge penalty's weights)."""
@@ -111,20 +118,17 @@ class _Problem:
         return np.array([np.sum(sq**t) for t in range(top + 1)])
 
 
-_FACTORS = Recent(8)
-
-
-def _prepare(points: ArrayLike, normals: ArrayLike | None, degree, *, method: str,
+def _prepare(points: ArrayLike | Cloud, normals: ArrayLike | None, degree, *, method: str,
              needs_normals: bool, normalization: Normalization | None = None) -> _Problem:
     degree = check_degree(degree)
-    pts = as_points(points)
+    cloud = as_cloud(points, normals, required_by=method if needs_normals else None)
+    pts = cloud.points
     check_enough_points(pts.shape[0], pts.shape[1], degree)
-    unit = as_normals(normals, pts, required_by=method if needs_normals else None)
     if normalization is not None and (not isinstance(normalization, Normalization)
                                       or normalization.dim != pts.shape[1]):
         raise error("normalization", f"a {pts.shape[1]}D Normalization", repr(normalization))
     norm = Normalization.from_points(pts) if normalization is None else normalization
-    return _Problem(norm.apply(pts), unit, norm, degree)
+    return _Problem(norm.apply(pts), cloud.unit_normals, norm, degree, cloud)
 
 
 def _triangular_lstsq(r: NDArray, z: NDArray, method: str) -> tuple[NDArray, dict]:
@@ -512,7 +516,8 @@ def fit_linear(points: ArrayLike, normals: ArrayLike | None, degree: int, method
     row weight), with that method's parameters (``c``, ``kappa``, ``mu``, ``far_row_weight``).
 
     ``normalization`` fits in given normalised coordinates instead of the points' own (e.g.
-    on a subsample, in the coordinates of the whole cloud).
+    on a subsample, in the coordinates of the whole cloud). ``points`` may be a
+    :class:`~ipfit.Cloud` (with ``normals`` None), which keeps the big R factors for the next fit.
 
     >>> from ipfit import fit_linear
     >>> from ipfit.datasets.synthetic import circle

@@ -47,8 +47,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from ._distance import (DEFAULT_MAX_SAMPLES, DEFAULT_TAU_FRACTION, Samples, Target, data_target, mesh_target,
                         query_workers)
-from ._recent import Recent, array_key
-from ._validation import as_faces, as_points, check_int, check_positive, error
+from ._validation import check_int, check_positive, error
+from .cloud import Cloud, as_cloud
 from .polynomial import ImplicitPolynomial
 from .zeroset import ZeroSet, extract_zero_set
 
@@ -110,14 +110,14 @@ def _fmt(value) -> str:
     return str(value)
 
 
-def looks_like_contour(points: ArrayLike) -> bool:
+def looks_like_contour(points: ArrayLike | Cloud) -> bool:
     """Heuristic: are 2D ``points`` listed in order along a contour?
 
     True when consecutive points are about as close as nearest neighbours (95th
     percentiles within a factor 4); a shuffled cloud has consecutive gaps of the order of
     its diameter.
     """
-    pts = as_points(points)
+    pts = as_cloud(points).points
     if pts.shape[1] != 2 or len(pts) < 4:
         return False
     from scipy.spatial import cKDTree
@@ -130,14 +130,12 @@ def looks_like_contour(points: ArrayLike) -> bool:
     return bool(np.quantile(gaps, 0.95) <= 4 * scale)
 
 
-def _within_gaps(ref: Target, query: NDArray, d_zero: NDArray, tau: float) -> NDArray[np.bool_]:
+def _within_gaps(cloud: Cloud, ref: Target, query: NDArray, d_zero: NDArray, tau: float) -> NDArray[np.bool_]:
     """Zero-set samples within τ of the surface a bare cloud samples: within √(τ² + s²) of
-    their nearest data point, s its local spacing (see the module notes)."""
-    from .sampling import point_spacing
-
+    their nearest data point (``ref`` holds the cloud's points), s its local spacing (see the
+    module notes)."""
     within = d_zero <= tau
-    points = ref.samples.points
-    spacing = point_spacing(points, k=points.shape[1])
+    spacing = cloud.point_spacing(cloud.dim)
     reach = math.sqrt(tau**2 + float(spacing.max(initial=0.0)) ** 2)
     maybe = np.flatnonzero(~within)
     if maybe.size and reach > tau:
@@ -147,7 +145,7 @@ def _within_gaps(ref: Target, query: NDArray, d_zero: NDArray, tau: float) -> ND
     return within
 
 
-def quality(model: ImplicitPolynomial | ZeroSet, points: ArrayLike, *, faces: ArrayLike | None = None,
+def quality(model: ImplicitPolynomial | ZeroSet, points: ArrayLike | Cloud, *, faces: ArrayLike | None = None,
             ordered_contour: bool = False, tau: float | None = None,
             tau_fraction: float = DEFAULT_TAU_FRACTION, bounds: ArrayLike | None = None, margin: float = 0.25,
             resolution: int | Sequence[int] | None = None, spacing: float | None = None,
@@ -159,10 +157,12 @@ def quality(model: ImplicitPolynomial | ZeroSet, points: ArrayLike, *, faces: Ar
     model : ImplicitPolynomial or ZeroSet
         A polynomial (its zero set is extracted over the data's box grown by ``margin``,
         or over ``bounds``) or an already extracted :class:`~ipfit.zeroset.ZeroSet`.
-    points : (N, dim) data points.
+    points : (N, dim) data points, or a :class:`~ipfit.Cloud`: then its faces are used, and
+        it keeps the data's side of the measurement and the last few measurements (measuring
+        the same polynomial on it again computes nothing).
     faces : (F, 3) int array, optional
         Triangles over ``points`` when the data is a mesh: precision is then measured
-        against the faces.
+        against the faces. None with a cloud.
     ordered_contour : bool
         2D: the points are in order along a contour (closed unless the last gap is far
         longer than the others); precision is measured against the polyline.
@@ -183,7 +183,7 @@ def quality(model: ImplicitPolynomial | ZeroSet, points: ArrayLike, *, faces: Ar
                     max_samples=max_samples)[0]
 
 
-def spurious_components(zero_set: ZeroSet, points: ArrayLike, **options) -> NDArray[np.bool_]:
+def spurious_components(zero_set: ZeroSet, points: ArrayLike | Cloud, **options) -> NDArray[np.bool_]:
     """Which pieces of ``zero_set`` are spurious: no part within τ of the data's shape.
 
     One flag per component, numbered as ``zero_set.component_labels`` (2D: per curve);
@@ -204,7 +204,7 @@ def spurious_components(zero_set: ZeroSet, points: ArrayLike, **options) -> NDAr
     return _measure(zero_set, points, **options)[1]
 
 
-def stray_samples(model: ImplicitPolynomial | ZeroSet, points: ArrayLike, *, most: int = 400,
+def stray_samples(model: ImplicitPolynomial | ZeroSet, points: ArrayLike | Cloud, *, most: int = 400,
                   distance: float | None = None, spurious_only: bool = False, **options) -> NDArray[np.float64]:
     """Up to ``most`` samples (evenly taken) of the zero set farther than ``distance`` (default τ)
     from the data's shape: the part that costs precision (spurious components, bulges, sheets).
@@ -228,41 +228,34 @@ def stray_samples(model: ImplicitPolynomial | ZeroSet, points: ArrayLike, *, mos
 
 def _measure(model, points, *, details: bool = False, **options):
     """(Quality, spurious flags) or, with ``details``, (None, flags, zero-set samples, their
-    distances to the shape, τ); the last few measurements of polynomials are kept, so that a
-    repair's stray samples reuse the measurement that judged its degree."""
+    distances to the shape, τ). A cloud keeps the last few measurements of polynomials, so that
+    a repair's stray samples reuse the measurement that judged its degree."""
     unknown = set(options) - set(_MEASURE_DEFAULTS)
     if unknown:
         raise TypeError(f"unexpected keyword argument {sorted(unknown)[0]!r}")
     options = {**_MEASURE_DEFAULTS, **options, "ordered_contour": bool(options.get("ordered_contour"))}
-    # checked before the cache key: a masked or complex array must not hit the entry of its data
-    points = as_points(points, min_points=2)
+    cloud = as_cloud(points, faces=options.pop("faces"), min_points=2)
     if not isinstance(model, ImplicitPolynomial):
-        found = _measure_now(model, points, **options)
+        found = _measure_now(model, cloud, **options)
     else:
-        faces = options["faces"]
-        key = (array_key(model.coefficients), array_key(model.normalization.center), model.normalization.scale,
-               array_key(points),
-               None if faces is None else array_key(np.asarray(faces)),
-               repr(sorted((k, v) for k, v in options.items() if k != "faces")))
-        found = _MEASURED.get(key, lambda: _measure_now(model, points, **options))
+        # The polynomial (its coefficients in its normalisation) and the settings name a measurement.
+        key = (model.coefficients.tobytes(), model.normalization.center.tobytes(), model.normalization.scale,
+               repr(sorted(options.items())))
+        found = cloud.derived("measurement", key, lambda: _measure_now(model, cloud, **options), keep=_MEASUREMENTS_KEPT)
     q, flags, samples, d_zero, tau = found
     return (None, flags, samples, d_zero, tau) if details else (q, flags)
 
 
-_MEASURED = Recent(4)
+# A degree and its repair rounds measure a few polynomials, each kept with its zero set's samples.
+_MEASUREMENTS_KEPT = 4
 _MEASURE_DEFAULTS = dict(faces=None, ordered_contour=False, tau=None, tau_fraction=DEFAULT_TAU_FRACTION, bounds=None,
                          margin=0.25, resolution=None, spacing=None, max_samples=DEFAULT_MAX_SAMPLES)
 
 
-# The data's side of a measurement (its samples and k-d tree) is the same for every degree and
-# repair round of a fit.
-_DATA_TARGETS = Recent(4)
-
-
-def _measure_now(model, pts, *, faces, ordered_contour, tau, tau_fraction, bounds, margin, resolution, spacing,
+def _measure_now(model, cloud: Cloud, *, ordered_contour, tau, tau_fraction, bounds, margin, resolution, spacing,
                  max_samples):
-    """(Quality, spurious flags, zero-set samples, their distances to the shape, τ); ``pts`` checked."""
-    dim = pts.shape[1]
+    """(Quality, spurious flags, zero-set samples, their distances to the shape, τ)."""
+    pts, dim = cloud.points, cloud.dim
     if isinstance(model, ImplicitPolynomial):
         if model.dim != dim:
             raise error("points", f"{model.dim}D points to match the polynomial", f"{dim}D points")
@@ -288,11 +281,9 @@ def _measure_now(model, pts, *, faces, ordered_contour, tau, tau_fraction, bound
     spacing = tau if spacing is None else check_positive(spacing, "spacing")
     max_samples = check_int(max_samples, "max_samples", minimum=1000)
 
-    face_array = None if faces is None else as_faces(faces, len(pts), dim)
-    key = (array_key(pts), None if face_array is None else array_key(face_array), bool(ordered_contour), spacing,
-           max_samples, tau)
-    ref, reference = _DATA_TARGETS.get(key, lambda: data_target(pts, face_array, ordered_contour, spacing,
-                                                                 max_samples, tau))
+    # The data's side (its samples and k-d tree) is the same for every degree and repair round.
+    ref, reference = cloud.derived("data_target", (bool(ordered_contour), spacing, max_samples, tau),
+                                   lambda: data_target(pts, cloud.faces, ordered_contour, spacing, max_samples, tau))
 
     n_components = zs.n_components
     if zs.is_empty:
@@ -311,7 +302,7 @@ def _measure_now(model, pts, *, faces, ordered_contour, tau, tau_fraction, bound
     d_data = target.distance(pts)
     d_zero = ref.distance(samples.points)
     recall = float(np.mean(d_data <= tau))
-    within = _within_gaps(ref, samples.points, d_zero, tau) if reference == "points" else d_zero <= tau
+    within = _within_gaps(cloud, ref, samples.points, d_zero, tau) if reference == "points" else d_zero <= tau
     w = samples.weights
     total = float(w.sum())
     if total > 0:

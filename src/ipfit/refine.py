@@ -35,8 +35,9 @@ from numpy.typing import ArrayLike, NDArray
 from . import basis
 from ._numeric import unit_rows
 from ._result import Result
-from ._validation import (as_normals, as_points, check_degree, check_enough_points,
+from ._validation import (as_points, check_degree, check_enough_points,
                           check_nonnegative, check_rng, error)
+from .cloud import Cloud, as_cloud
 from .farfield import FarFieldTerm
 from .objective import Measures, Objective, single_threaded_blas
 from .optimize import DifferentialEvolution, OptimizeResult, ParticleSwarm, polish as lbfgs
@@ -116,7 +117,7 @@ class RefineResult(Result):
                 f"best_start={self.best_start!r}, nit={self.nit}, nfev={self.nfev}, success={self.success})")
 
 
-def refine(points: ArrayLike, normals: ArrayLike, degree: int, method: str = DEFAULT_METHOD, *,
+def refine(points: ArrayLike | Cloud, normals: ArrayLike | None, degree: int, method: str = DEFAULT_METHOD, *,
            options: SearchOptions | None = None, delta: float = DEFAULT_DELTA,
            starts: Sequence[ImplicitPolynomial | ArrayLike] | None = None, keep_clear: ArrayLike | None = None,
            rng=None, callback: Callable[[OptimizeResult], Any] | None = None) -> RefineResult:
@@ -124,9 +125,11 @@ def refine(points: ArrayLike, normals: ArrayLike, degree: int, method: str = DEF
 
     Parameters
     ----------
-    points : (N, 2) or (N, 3) array
+    points : (N, 2) or (N, 3) array, or a :class:`~ipfit.Cloud` with normals
+        A cloud keeps what the next refinement on it reuses: the far-field term's samples, the
+        search subsample, the start fits' big R factors.
     normals : (N, dim) array
-        Normals at the points (any length but zero; normalised here).
+        Normals at the points (any length but zero; normalised here); None with a cloud.
     degree : int
         Polynomial degree.
     method : str, default "de+polish"
@@ -169,8 +172,8 @@ def refine(points: ArrayLike, normals: ArrayLike, degree: int, method: str = DEF
     >>> bool(res.distance < 1e-8), res.polynomial.method, res.success
     (True, 'de+polish', True)
     """
-    pts = as_points(points)
-    unit_normals = as_normals(normals, pts, required_by="refine")
+    cloud = as_cloud(points, normals, required_by="refine")
+    pts = cloud.points
     degree = check_degree(degree)
     check_enough_points(len(pts), pts.shape[1], degree)
     options = RECOMMENDED if options is None else options
@@ -190,7 +193,7 @@ def refine(points: ArrayLike, normals: ArrayLike, degree: int, method: str = DEF
     # points itself, and everything else is many small products, for which BLAS worker
     # threads only cost synchronisation (badly so when other processes compete for the cores).
     with single_threaded_blas():
-        return _refine(pts, unit_normals, degree, settings, delta, starts, keep_clear, gen, callback)
+        return _refine(cloud, degree, settings, delta, starts, keep_clear, gen, callback)
 
 
 def _clear_targets(u: NDArray, unit_normals: NDArray, places: NDArray) -> NDArray:
@@ -200,12 +203,27 @@ def _clear_targets(u: NDArray, unit_normals: NDArray, places: NDArray) -> NDArra
     return np.where(side < 0, -1.0, 1.0) * np.maximum(dist, 1e-12)
 
 
-def _objectives(pts, unit_normals, degree, delta, settings: MethodOptions, keep_clear=None):
+def _normalised(cloud: Cloud, n_search: int | None) -> tuple[Normalization, Cloud]:
+    """The cloud in its normalised coordinates (all points, or the well-spread subsample of
+    ``n_search``), kept by ``cloud`` for every refinement of the fit with the far-field term's
+    samples it keeps in turn."""
+    def compute() -> tuple[Normalization, Cloud]:
+        if n_search is None:
+            norm = Normalization.from_points(cloud.points)
+            return norm, Cloud._checked(norm.apply(cloud.points), cloud.unit_normals)
+        norm, whole = _normalised(cloud, None)
+        keep = spread_subsample(whole.points, n_search, rng=0)
+        return norm, Cloud._checked(whole.points[keep], whole.oriented[keep])
+
+    return cloud.derived("normalised", n_search, compute)
+
+
+def _objectives(cloud: Cloud, degree, delta, settings: MethodOptions, keep_clear=None):
     """The float64 objective on all points (start fits' ranking, final polish, measures), the
     search's (on a well-spread subsample of ``search_points`` points, maybe in float32) and, when
     subsampled, the float64 objective on that subsample (the first polish stage)."""
-    norm = Normalization.from_points(pts)
-    u = norm.apply(pts)
+    norm, whole = _normalised(cloud, None)
+    u, unit_normals = whole.points, whole.oriented
     weight = settings.far_term_weight
 
     extra = []
@@ -213,19 +231,19 @@ def _objectives(pts, unit_normals, degree, delta, settings: MethodOptions, keep_
         places = norm.apply(keep_clear)
         extra = [FarFieldTerm(places, _clear_targets(u, unit_normals, places), degree, weight)]
 
-    def build(u_, n_, dtype=np.float64):
-        terms = [FarFieldTerm.from_data(u_, n_, degree, weight)] if weight > 0 else []
-        return Objective(u_, n_, degree, delta, dtype=dtype, terms=terms + extra)
+    def build(part: Cloud, dtype=np.float64):
+        terms = [FarFieldTerm.from_data(part, None, degree, weight)] if weight > 0 else []
+        return Objective(part.points, part.oriented, degree, delta, dtype=dtype, terms=terms + extra)
 
-    obj64 = build(u, unit_normals)
+    obj64 = build(whole)
     dtype = np.dtype(settings.dtype)
     n_search = settings.search_points
     if n_search is not None and len(u) > n_search:
-        keep = spread_subsample(u, n_search, rng=0)
-        sub64 = build(u[keep], unit_normals[keep])
-        obj_pop = sub64 if dtype == np.float64 else build(u[keep], unit_normals[keep], dtype)
+        sub = _normalised(cloud, n_search)[1]
+        sub64 = build(sub)
+        obj_pop = sub64 if dtype == np.float64 else build(sub, dtype)
         return norm, obj64, obj_pop, sub64
-    return norm, obj64, (obj64 if dtype == np.float64 else build(u, unit_normals, dtype)), None
+    return norm, obj64, (obj64 if dtype == np.float64 else build(whole, dtype)), None
 
 
 def _whitening(obj64: Objective) -> tuple[NDArray, NDArray]:
@@ -338,19 +356,20 @@ def _solutions(template, pool, pool_fun, kept, obj64, pts, unit_normals, starts:
     return out
 
 
-def _refine(pts, unit_normals, degree, settings: MethodOptions, delta, given_starts, keep_clear, gen,
+def _refine(cloud: Cloud, degree, settings: MethodOptions, delta, given_starts, keep_clear, gen,
             callback) -> RefineResult:
     started = time.perf_counter()
+    pts, unit_normals = cloud.points, cloud.unit_normals
     method, dim = settings.method, pts.shape[1]
     d = basis.n_coefficients(dim, degree)
     size = settings.population_size or 4 * d
     if method.startswith("de") and size < 4:
         raise error("population_size", "at least 4 members for DE/rand/1", str(size))
-    norm, obj64, obj_pop, sub64 = _objectives(pts, unit_normals, degree, delta, settings, keep_clear)
+    norm, obj64, obj_pop, sub64 = _objectives(cloud, degree, delta, settings, keep_clear)
     n_search = len(pts) if sub64 is None else sub64.n_points
     # The linear start fits see what the search sees: a QR of the full cloud's 3N rows per start
     # fit would cost more than the whole search on big clouds (the bunny: 80 s of 12 QRs at degree 8).
-    starts = start_fits(pts, unit_normals, degree, norm, settings.start_fits, given_starts,
+    starts = start_fits(cloud, degree, norm, settings.start_fits, given_starts,
                         far_term=settings.far_term_weight > 0, max_points=min(n_search, START_POINTS))
     if method == "polish" and not len(starts):
         raise error("starts", "at least one start fit or start polynomial for method='polish'", "none",

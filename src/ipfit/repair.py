@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
+from .cloud import Cloud
 from .options import SearchOptions
 from .quality import stray_samples
 
@@ -49,17 +50,15 @@ def _closer(trial: DegreeResult, best: DegreeResult, recall: float) -> bool:
             and q.f_score > best.quality.f_score)
 
 
-def _stray_distance(tau: float, pts, faces, ordered_contour) -> float:
-    if faces is not None or ordered_contour:
+def _stray_distance(tau: float, cloud: Cloud, ordered_contour) -> float:
+    if cloud.faces is not None or ordered_contour:
         return tau
     # A bare cloud: between its points even a perfect surface is up to about a spacing away from
     # the nearest one; only what lies beyond that is stray.
-    from .sampling import point_spacing
-
-    return max(tau, 2 * float(np.median(point_spacing(pts))))
+    return max(tau, 2 * float(np.median(cloud.spacing)))
 
 
-def repair(entry: DegreeResult, refit: Callable[..., DegreeResult], options: SearchOptions, pts, faces,
+def repair(entry: DegreeResult, refit: Callable[..., DegreeResult], options: SearchOptions, cloud: Cloud,
            ordered_contour, rule: DegreeRule, best_f: float = 0.0) -> DegreeResult:
     """Try to make a degree done for ``rule`` (clean and, for the capture rule, precise) before
     the rule judges it.
@@ -72,16 +71,17 @@ def repair(entry: DegreeResult, refit: Callable[..., DegreeResult], options: Sea
     ``cleanup``.
 
     ``refit(options, start, keep_clear)`` fits the same degree again with the 'polish' method
-    from the coefficients ``start``, and measures it.
+    from the coefficients ``start``, and measures it. ``cloud`` is the fit's data (its faces
+    describe the shape, with ``ordered_contour``), whose kept measurements the repair reuses.
     """
-    polish = min(CLEANUP_POLISH_ITERATIONS, options.for_method("polish", dim=pts.shape[1]).polish_iterations)
-    stray = _stray_distance(entry.quality.tau, pts, faces, ordered_contour)
+    polish = min(CLEANUP_POLISH_ITERATIONS, options.for_method("polish", dim=cloud.dim).polish_iterations)
+    stray = _stray_distance(entry.quality.tau, cloud, ordered_contour)
     target = "precision" if rule.is_clean(entry.quality) else "spurious components"
     best = current = entry
     places, attempts, nfev = [], [], entry.nfev
     for weight in options.cleanup_weights:
         # Spurious components first (their samples alone, as many as a bulge would otherwise take).
-        found = stray_samples(current.polynomial, pts, faces=faces, ordered_contour=bool(ordered_contour),
+        found = stray_samples(current.polynomial, cloud, ordered_contour=bool(ordered_contour),
                               distance=stray, spurious_only=current.quality.n_spurious > 0)
         if len(found):
             places.append(found)

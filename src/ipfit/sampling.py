@@ -15,35 +15,24 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ._recent import Recent, array_key
-from ._validation import as_points, check_int, check_rng
+from ._validation import check_int, check_rng
+from .cloud import Cloud, as_cloud
 
 __all__ = ["spread_subsample", "point_spacing"]
 
 
-def point_spacing(points: ArrayLike, k: int = 1) -> NDArray[np.float64]:
+def point_spacing(points: ArrayLike | Cloud, k: int = 1) -> NDArray[np.float64]:
     """Each point's distance to its ``k``-th nearest other point (0 for a repeated point when
     ``k`` = 1, and for every point of a cloud of at most ``k`` points).
 
-    A fit measures and trims the same cloud many times, so the last few results are kept.
+    Given a :class:`~ipfit.Cloud`, the cloud keeps the result (:meth:`ipfit.Cloud.point_spacing`):
+    a fit measures and repairs the same cloud many times.
 
     >>> point_spacing([[0.0, 0.0], [1.0, 0.0], [3.0, 0.0]]).tolist()
     [1.0, 1.0, 2.0]
     """
-    pts = as_points(points)
-    k = check_int(k, "k", minimum=1)
-    return _SPACING.get((array_key(pts), k), lambda: _spacing(pts, k)).copy()
-
-
-def _spacing(pts: NDArray[np.float64], k: int) -> NDArray[np.float64]:
-    from scipy.spatial import cKDTree
-
-    if len(pts) <= k:
-        return np.zeros(len(pts))
-    return cKDTree(pts).query(pts, k=[k + 1], workers=-1)[0][:, 0]
-
-
-_SPACING = Recent(4)
+    cloud = as_cloud(points)
+    return cloud.point_spacing(check_int(k, "k", minimum=1)).copy()  # a copy: the cloud's stays read-only
 
 
 def _occupied(keys_of, size: float) -> tuple[int, NDArray[np.int64]]:
@@ -51,7 +40,7 @@ def _occupied(keys_of, size: float) -> tuple[int, NDArray[np.int64]]:
     return len(first), first
 
 
-def spread_subsample(points: ArrayLike, n: int, *, rng=0) -> NDArray[np.int64]:
+def spread_subsample(points: ArrayLike | Cloud, n: int, *, rng=0) -> NDArray[np.int64]:
     """Indices of ``n`` points spread evenly over the cloud (sorted; all points when N <= n).
 
     Parameters
@@ -72,7 +61,7 @@ def spread_subsample(points: ArrayLike, n: int, *, rng=0) -> NDArray[np.int64]:
     >>> len(pick), int(np.sum(pick >= 1000))  # the sparse part keeps its share of the length
     (40, 10)
     """
-    pts = as_points(points)
+    pts = as_cloud(points).points
     n = check_int(n, "n", minimum=1)
     gen = check_rng(rng)
     total = len(pts)

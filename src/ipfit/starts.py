@@ -16,6 +16,7 @@ from numpy.typing import ArrayLike, NDArray
 from . import basis
 from ._numeric import unit_rows
 from ._validation import error
+from .cloud import Cloud, as_cloud
 from .exceptions import IpfitError
 from .linear import DEFAULT_FAR_ROW_WEIGHT, fit_linear
 from .options import StartFit
@@ -63,17 +64,25 @@ class StartFits:
         return dict(zip(self.labels, map(float, self.distances)))
 
 
-def _linear(points, normals, degree, norm: Normalization, fits: Sequence[StartFit], max_points: int):
+def _fitted_cloud(cloud: Cloud, max_points: int) -> Cloud:
+    """The cloud the start fits solve on: a spread subsample of ``max_points`` points of a bigger
+    one. The linear fits check and normalise the unit normals they are given once more (they
+    always have: its last bits are part of every fit's coefficients)."""
+    keep = spread_subsample(cloud.points, max_points, rng=0) if len(cloud) > max_points else slice(None)
+    return as_cloud(cloud.points[keep], cloud.oriented[keep])
+
+
+def _linear(cloud: Cloud, degree, norm: Normalization, fits: Sequence[StartFit], max_points: int):
     labels, coefs, notes = [], [], []
-    if len(points) > max_points:
-        notes.append(f"start fits on a spread subsample of {max_points} of the {len(points)} points")
-        keep = spread_subsample(points, max_points, rng=0)
-        points, normals = points[keep], normals[keep]
+    if len(cloud) > max_points:
+        notes.append(f"start fits on a spread subsample of {max_points} of the {len(cloud)} points")
+    # One cloud for every degree's start fits: it keeps the R factors they share.
+    fitted = cloud.derived("start_fit_cloud", min(max_points, len(cloud)), lambda: _fitted_cloud(cloud, max_points))
     for spec, method, params in fits:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             try:
-                poly = fit_linear(points, normals, degree, method, normalization=norm, **params)
+                poly = fit_linear(fitted, None, degree, method, normalization=norm, **params)
             except IpfitError as exc:
                 notes.append(f"start fit {spec} failed: {exc}")
                 continue
@@ -114,20 +123,21 @@ def _given(starts, dim: int, degree: int, norm: Normalization, d: int):
     return labels, coefs
 
 
-def start_fits(points: NDArray, unit_normals: NDArray, degree: int, norm: Normalization, fits: Sequence[StartFit],
+def start_fits(cloud: Cloud, degree: int, norm: Normalization, fits: Sequence[StartFit],
                starts: Sequence[ImplicitPolynomial | ArrayLike] | None, far_term: bool,
                max_points: int = START_POINTS) -> StartFits:
     """The user's polynomials first, then the linear start fits (parsed and checked by
     :meth:`ipfit.SearchOptions.for_method`) (3L with far-field rows added
     when the objective has a far-field term: it starts the search nearer clean zero sets),
-    fitted on a well-spread subsample of at most ``max_points`` points."""
-    d = basis.n_coefficients(points.shape[1], degree)
-    labels, coefs = _given(starts, points.shape[1], degree, norm, d) if starts is not None else ([], [])
+    fitted on a well-spread subsample of at most ``max_points`` points of ``cloud`` (which
+    needs unit normals)."""
+    d = basis.n_coefficients(cloud.dim, degree)
+    labels, coefs = _given(starts, cloud.dim, degree, norm, d) if starts is not None else ([], [])
     fits = list(fits)
     if far_term and fits and FAR_START not in (fit.spec for fit in fits):
         fits.append(StartFit(f"{FAR_START}(far_row_weight={DEFAULT_FAR_ROW_WEIGHT:g})", FAR_START,
                              {"far_row_weight": DEFAULT_FAR_ROW_WEIGHT}))
-    lin_labels, lin_coefs, notes = _linear(points, unit_normals, degree, norm, fits, max_points)
+    lin_labels, lin_coefs, notes = _linear(cloud, degree, norm, fits, max_points)
     labels = [*labels, *(FAR_START if lab.startswith(FAR_START + "(") else lab for lab in lin_labels)]
     return StartFits(labels, np.array(coefs + lin_coefs).reshape(-1, d), notes)
 

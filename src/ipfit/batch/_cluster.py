@@ -60,37 +60,24 @@ def check_workers(workers: Any) -> int:
     return workers
 
 
-class _StartShield:
-    """SIGINT held while the embedded cluster starts: recorded, not lost, and raised again by
-    :meth:`release` once the cluster can be stopped cleanly.
+@contextlib.contextmanager
+def _sigint_ignored() -> Iterator[None]:
+    """SIGINT ignored while the block runs, so that the processes it starts inherit that.
 
-    It is also blocked in this thread, so the threads and processes started meanwhile inherit
-    the blocked mask: a Ctrl-C to the terminal's process group cannot kill a worker before its
-    preload (:mod:`ipfit.batch._worker`) ignores SIGINT. (Threads made earlier, BLAS's, may
-    still take the signal: the recording handler catches it there.)
+    An ignored signal is the one disposition that survives fork and exec: a worker then starts
+    immune to a terminal's Ctrl-C (sent to the whole process group) until its preload
+    (:mod:`ipfit.batch._worker`) makes that permanent. The price: a Ctrl-C in the seconds the
+    cluster starts is lost (blocking it instead does not protect the workers: other threads,
+    BLAS's, receive and drop it).
     """
-
-    def __init__(self) -> None:
-        self.seen = False
-        self._state: tuple | None = None
-
-    def hold(self) -> None:
-        if threading.current_thread() is threading.main_thread():
-            mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
-            self._state = (mask, signal.signal(signal.SIGINT, self._record))
-
-    def _record(self, signum: int, frame) -> None:
-        self.seen = True
-
-    def release(self) -> None:
-        if self._state is None:
-            return
-        mask, handler = self._state
-        self._state = None
-        signal.signal(signal.SIGINT, handler)
-        signal.pthread_sigmask(signal.SIG_SETMASK, mask)  # one that came meanwhile is delivered now
-        if self.seen:
-            signal.raise_signal(signal.SIGINT)
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 class HeldSignals:
@@ -138,16 +125,10 @@ def local_cluster(workers: int = 2) -> Iterator[Any]:
                           "distributed.worker.preload": preload,
                           "distributed.scheduler.allowed-failures": 0,
                           "distributed.scheduler.worker-saturation": 1.0}):
-        shield = _StartShield()
-        shield.hold()
-        try:
+        with _sigint_ignored():
             cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
                                    env=THREAD_ENV, silence_logs=logging.CRITICAL)
-        except BaseException:
-            shield.release()
-            raise
         try:
-            shield.release()  # a Ctrl-C held during the start is raised here: the cluster is closed below
             client = Client(cluster)
             try:
                 yield client

@@ -1,10 +1,9 @@
 """Preloaded in every embedded worker process (``distributed.worker.preload``).
 
 Ctrl-C in a terminal signals the whole process group; the batch process handles it and
-stops the workers, so a worker ignores SIGINT instead of dying with a traceback. Until this
-runs, a worker has SIGINT blocked (inherited from the batch process, which blocks it while
-it starts the cluster; the cluster's own threads keep that mask, so a replacement worker
-inherits it too): a Ctrl-C meanwhile stays pending, and ignoring the signal discards it.
+stops the workers, so a worker ignores SIGINT instead of dying with a traceback. The first
+workers inherit that from the batch process (which ignores SIGINT while it starts the
+cluster); this covers one started later to replace a worker that died.
 """
 
 import signal
