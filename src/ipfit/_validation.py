@@ -228,7 +228,9 @@ def check_degree(degree: Any, name: str = "degree") -> int:
 
 
 def check_real(value: Any, name: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not np.isfinite(value):
+    # numpy's stubs do not know numbers.Real. Behaviour kept as is, though mypy has a point: a Real numpy
+    # cannot convert (fractions.Fraction) raises numpy's TypeError here, not InvalidInputError (issue 29).
+    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not np.isfinite(value):  # type: ignore[call-overload]
         raise error(name, "a finite real number", _describe(value))
     return float(value)
 
@@ -267,7 +269,8 @@ def check_rng(rng: Any) -> np.random.Generator:
         return rng
     if rng is None or (isinstance(rng, (numbers.Integral, np.random.SeedSequence)) and not isinstance(rng, bool)):
         try:
-            return np.random.default_rng(rng)
+            # numpy's stubs do not know numbers.Integral; default_rng accepts any Integral it can index
+            return np.random.default_rng(rng)  # type: ignore[arg-type]
         except ValueError:
             raise error("rng", "None, a non-negative int seed or a numpy Generator", _describe(rng)) from None
     raise error("rng", "None, a non-negative int seed or a numpy Generator", _describe(rng))

@@ -127,7 +127,7 @@ class DifferentialEvolution(PopulationSolver):
 
     @renamed_keywords(F=into_keyword("mutation"), CR=into_keyword("recombination"),
                       population=into_keyword("init"))
-    def __init__(self, func: Callable[[NDArray], ArrayLike], init: ArrayLike, *, mutation: float = 0.7,
+    def __init__(self, func: Callable[..., ArrayLike], init: ArrayLike, *, mutation: float = 0.7,
                  recombination: float = 0.9, maxiter: int = 500, rng=None,
                  callback: Callable[[OptimizeResult], Any] | None = None,
                  project: Callable[[NDArray], NDArray] | None = None, stall_generations: int | None = None,
