@@ -9,7 +9,7 @@ from __future__ import annotations
 import numbers
 from collections.abc import Iterator, Mapping
 from collections.abc import Set as AbstractSet
-from typing import Any
+from typing import Any, overload
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -160,6 +160,15 @@ def _frame_coordinates(frame: Any, name: str) -> NDArray[np.float64]:
     return np.column_stack([column.to_numpy(dtype=np.float64, na_value=np.nan) for column in columns])
 
 
+@overload
+def as_normals(normals: None, points: NDArray[np.float64], name: str = ..., *,
+               required_by: str | None = ...) -> None: ...
+@overload
+def as_normals(normals: ArrayLike, points: NDArray[np.float64], name: str = ..., *,
+               required_by: str | None = ...) -> NDArray[np.float64]: ...
+@overload
+def as_normals(normals: ArrayLike | None, points: NDArray[np.float64], name: str = ..., *,
+               required_by: str | None = ...) -> NDArray[np.float64] | None: ...
 def as_normals(normals: ArrayLike | None, points: NDArray[np.float64], name: str = "normals",
                *, required_by: str | None = None) -> NDArray[np.float64] | None:
     """Return unit normals of the same shape as ``points`` (or None when allowed).
