@@ -40,7 +40,7 @@ from pathlib import Path
 try:
     import fcntl
 except ImportError:  # pragma: no cover - Windows: no advisory locks, writes are still atomic
-    fcntl = None
+    fcntl = None  # type: ignore[assignment]  # an optional module: mypy has no type for "the module or None"
 
 from .exceptions import InvalidInputError, IpfitError
 
@@ -57,7 +57,7 @@ _HIDDEN = ".ipfit-"
 _KEY = re.compile(r"\.ipfit-([0-9a-f]{12})[-.]")
 _MAX_SUFFIX = 16  # longer suffixes name no format a writer knows; they would only lengthen the name
 
-_live: dict[Path, tuple] = {}  # temporary files not yet renamed into place or removed -> their set's lock
+_live: dict[Path, tuple | None] = {}  # temporary files not yet renamed into place or removed -> their set's lock
 _created_dirs: list[Path] = []  # folders made for outputs; removed again if they stay empty
 _written: list[Path] = []  # final paths published by this process, in order
 _locks: dict[tuple, list] = {}  # (folder device, folder inode, key) -> [descriptor, holds, lock path]
@@ -228,6 +228,8 @@ def _hold(target: Path) -> tuple | None:
 
 def _release(ident: tuple | None) -> None:
     with _guard:
+        if ident is None:  # no lock was taken (no fcntl)
+            return
         held = _locks.get(ident)
         if held is None:
             return

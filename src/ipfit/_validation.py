@@ -9,7 +9,7 @@ from __future__ import annotations
 import numbers
 from collections.abc import Iterator, Mapping
 from collections.abc import Set as AbstractSet
-from typing import Any
+from typing import Any, overload
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -160,6 +160,15 @@ def _frame_coordinates(frame: Any, name: str) -> NDArray[np.float64]:
     return np.column_stack([column.to_numpy(dtype=np.float64, na_value=np.nan) for column in columns])
 
 
+@overload
+def as_normals(normals: None, points: NDArray[np.float64], name: str = ..., *,
+               required_by: str | None = ...) -> None: ...
+@overload
+def as_normals(normals: ArrayLike, points: NDArray[np.float64], name: str = ..., *,
+               required_by: str | None = ...) -> NDArray[np.float64]: ...
+@overload
+def as_normals(normals: ArrayLike | None, points: NDArray[np.float64], name: str = ..., *,
+               required_by: str | None = ...) -> NDArray[np.float64] | None: ...
 def as_normals(normals: ArrayLike | None, points: NDArray[np.float64], name: str = "normals",
                *, required_by: str | None = None) -> NDArray[np.float64] | None:
     """Return unit normals of the same shape as ``points`` (or None when allowed).
@@ -228,7 +237,9 @@ def check_degree(degree: Any, name: str = "degree") -> int:
 
 
 def check_real(value: Any, name: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not np.isfinite(value):
+    # numpy's stubs do not know numbers.Real. Behaviour kept as is, though mypy has a point: a Real numpy
+    # cannot convert (fractions.Fraction) raises numpy's TypeError here, not InvalidInputError (issue 29).
+    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not np.isfinite(value):  # type: ignore[call-overload]
         raise error(name, "a finite real number", _describe(value))
     return float(value)
 
@@ -267,7 +278,8 @@ def check_rng(rng: Any) -> np.random.Generator:
         return rng
     if rng is None or (isinstance(rng, (numbers.Integral, np.random.SeedSequence)) and not isinstance(rng, bool)):
         try:
-            return np.random.default_rng(rng)
+            # numpy's stubs do not know numbers.Integral; default_rng accepts any Integral it can index
+            return np.random.default_rng(rng)  # type: ignore[arg-type]
         except ValueError:
             raise error("rng", "None, a non-negative int seed or a numpy Generator", _describe(rng)) from None
     raise error("rng", "None, a non-negative int seed or a numpy Generator", _describe(rng))

@@ -177,7 +177,8 @@ class ImplicitPolynomial:
             raise error("coefficients", f"a length C(g+{dim}, {dim}) for some degree g (e.g. "
                         + ", ".join(str(basis.n_coefficients(dim, g)) for g in (1, 2, 4, 6)) + ")",
                         f"length {coef.size}") from None
-        return cls(basis.exponents(dim, degree), coef, normalization, **kwargs)
+        # None is the identity (__post_init__); mypy's __init__ takes the field's type, Normalization
+        return cls(basis.exponents(dim, degree), coef, normalization, **kwargs)  # type: ignore[arg-type]
 
     def with_coefficients(self, coefficients: ArrayLike, **changes) -> ImplicitPolynomial:
         """A copy with other coefficients (same basis and normalisation)."""
@@ -217,7 +218,7 @@ class ImplicitPolynomial:
         degree = self.degree
         for start in range(0, n, _CHUNK):
             block = u[start:start + _CHUNK]
-            if gradient:
+            if grads is not None:  # gradient
                 m, dm = basis.monomials_and_gradients(block, degree)
                 grads[start:start + _CHUNK] = (dm @ self.coefficients).T
             else:
@@ -313,8 +314,9 @@ class ImplicitPolynomial:
         measures = data.get("measures")
         if measures is not None:
             measures = {k: v for k, v in measures.items() if isinstance(v, (int, float)) and not isinstance(v, bool)}
-        return cls(data["exponents"], data["coefficients"], normalization, method=data.get("method"),
-                   measures=measures, info=data.get("info") or {})
+        # None is the identity (__post_init__); mypy's __init__ takes the field's type, Normalization
+        return cls(data["exponents"], data["coefficients"], normalization,  # type: ignore[arg-type]
+                   method=data.get("method"), measures=measures, info=data.get("info") or {})
 
     @classmethod
     def from_json(cls, text: str | bytes) -> ImplicitPolynomial:

@@ -21,7 +21,7 @@ import math
 import numbers
 import os
 from functools import lru_cache
-from typing import NamedTuple
+from typing import NamedTuple, cast
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -55,7 +55,8 @@ class RayHits(NamedTuple):
 
     t: NDArray[np.float64]
     points: NDArray[np.float64]
-    count: NDArray[np.int64]
+    # the field shadows tuple.count, as mypy says; it is the public name of the field
+    count: NDArray[np.int64]  # type: ignore[assignment]
     on_zero_set: NDArray[np.bool_]
 
     @property
@@ -326,7 +327,8 @@ def render(poly, bounds: ArrayLike, path: str | os.PathLike | None = None, *, si
     if np.abs(box).max() > MAX_COORDINATE:  # the camera's rays would start beyond float64's range
         raise error("bounds", f"a box within ±{MAX_COORDINATE:.0e}", f"{box.tolist()}",
                     "Render the polynomial in smaller units.")
-    width, height = (size, size) if np.isscalar(size) else size
+    # np.isscalar does not narrow for mypy: the other case is the (width, height) pair
+    width, height = (size, size) if np.isscalar(size) else cast("tuple[int, int]", size)
     width, height = check_int(width, "size", minimum=1), check_int(height, "size", minimum=1)
     if up not in ("x", "y", "z"):
         raise error("up", "'x', 'y' or 'z'", repr(up))

@@ -38,7 +38,7 @@ protocol); registering it in :data:`RULES` makes its name accepted too.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TypeGuard
 
 from ._validation import check_choice, error
 from .quality import Quality
@@ -134,7 +134,7 @@ def is_speck(component: dict, tau: float) -> bool:
     return component["size"] < (tau / 2) ** (len(component["center"]) - 1) and component["distance"] < SPECK_REACH * tau
 
 
-def is_clean(q: Quality | None, *, ignore_specks: bool = True) -> bool:
+def is_clean(q: Quality | None, *, ignore_specks: bool = True) -> TypeGuard[Quality]:
     """Whether a measured zero set is clean: the one definition, parametrised as the rules differ.
 
     Parameters
@@ -241,6 +241,13 @@ def describe_unclean(q: Quality) -> str:
     return "; ".join(parts)
 
 
+def _measured(entry: DegreeResult) -> Quality:
+    """The quality of a degree a ``measured`` rule fitted, which it always has."""
+    if entry.quality is None:
+        raise ValueError(f"degree {entry.degree}: not measured")  # a bug of ipfit's, not an input error
+    return entry.quality
+
+
 # -- the rules as objects --------------------------------------------------------------------------
 class DegreeRule:
     """A degree rule: what :func:`ipfit.fit_adaptive` asks about the degrees it fits.
@@ -281,7 +288,7 @@ class DegreeRule:
         """The last degree tried in ``dim`` dimensions when the caller gives no maximum."""
         return self.max_degrees[dim]
 
-    def is_clean(self, quality: Quality | None) -> bool:
+    def is_clean(self, quality: Quality | None) -> TypeGuard[Quality]:  # clean: measured
         """Whether a degree's zero set is clean for this rule (:func:`is_clean`)."""
         return is_clean(quality, ignore_specks=self.ignore_specks)
 
@@ -314,7 +321,7 @@ class DegreeRule:
         if i == index:
             return "selected: " + message
         if self.measured and not self.is_clean(results[i].quality):
-            return "rejected: " + (describe_unclean(results[i].quality) or "empty zero set")
+            return "rejected: " + (describe_unclean(_measured(results[i])) or "empty zero set")
         return f"not selected: degree {results[index].degree} was"
 
     def success(self, results: Sequence[DegreeResult], index: int) -> bool:

@@ -159,7 +159,7 @@ def trim_zero_set(zero_set: ZeroSet, points: ArrayLike, distance: float | None =
     if zero_set.is_empty:
         return replace(zero_set, trim=_record(distance, 0.0, 0.0, 0, reference, zero_set.dim))
     if zero_set.dim == 3:
-        return _trim_mesh(zero_set, target.distance(zero_set.vertices) <= distance, distance, reference)
+        return _trim_mesh(zero_set, target.distance(zero_set._mesh()[0]) <= distance, distance, reference)
     return _trim_curves(zero_set, [target.distance(c) <= distance for c in zero_set.curves], distance, reference)
 
 
@@ -169,14 +169,15 @@ def _face_areas(vertices: NDArray, faces: NDArray) -> NDArray:
 
 
 def _trim_mesh(zs: ZeroSet, near: NDArray[np.bool_], distance: float, reference: str) -> ZeroSet:
-    keep = near[zs.faces].all(axis=1)
-    areas = _face_areas(zs.vertices, zs.faces)
-    used = np.zeros(len(zs.vertices), dtype=bool)
-    used[zs.faces[keep].ravel()] = True
+    vertices, old_faces = zs._mesh()
+    keep = near[old_faces].all(axis=1)
+    areas = _face_areas(vertices, old_faces)
+    used = np.zeros(len(vertices), dtype=bool)
+    used[old_faces[keep].ravel()] = True
     index = np.cumsum(used) - 1  # old vertex -> new vertex, for the vertices kept faces use
-    faces = index[zs.faces[keep]].astype(np.int64)
+    faces = index[old_faces[keep]].astype(np.int64)
     record = _record(distance, float(areas[~keep].sum()), float(areas[keep].sum()), int((~keep).sum()), reference, 3)
-    return replace(zs, vertices=zs.vertices[used], faces=faces, trim=record)
+    return replace(zs, vertices=vertices[used], faces=faces, trim=record)
 
 
 def _runs(keep: NDArray[np.bool_]) -> list[tuple[int, int]]:

@@ -166,7 +166,7 @@ class _Outputs:
         data = _json_or_none(path) if path.is_file() else None
         self._check(path, path.name in self.own or (isinstance(data, dict) and data.get("format") == FORMAT_NAME))
         try:
-            validate_result(data, str(path))
+            data = validate_result(data, str(path))  # returns data itself, now known to be a dict
         except (InvalidInputError, RecursionError, ValueError, TypeError, KeyError):
             return None
         recorded, batch = data.get("input") or {}, data.get("batch") or {}

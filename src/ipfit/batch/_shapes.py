@@ -185,7 +185,7 @@ def expand_inputs(inputs: Iterable[Any] | Mapping[str, Any]) -> list[_Task]:
     from ..datasets.collection import GeneratedShape
 
     tasks: list[_Task] = []
-    items = []
+    items: list[tuple[str | None, Any]] = []  # (name or None, input)
     for item in [inputs] if isinstance(inputs, Mapping) else inputs:
         items += item.items() if isinstance(item, Mapping) else [(None, item)]
     for name, item in items:

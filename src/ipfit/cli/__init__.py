@@ -71,7 +71,7 @@ def _os_error_line(exc: OSError) -> str:
     """One line naming the path and the reason, e.g. ``out/a.json: No space left on device. Free...``."""
     reason = exc.strerror or exc.__class__.__name__
     where = ": ".join(str(p) for p in (exc.filename, exc.filename2) if p is not None)
-    fix = _FIXES.get(exc.errno, "")
+    fix = "" if exc.errno is None else _FIXES.get(exc.errno, "")
     return " ".join(filter(None, [f"{where}: {reason}." if where else f"{reason}.", fix]))
 
 

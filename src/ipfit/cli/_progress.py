@@ -11,7 +11,11 @@ from __future__ import annotations
 
 import sys
 import time
-from typing import TextIO
+from typing import TYPE_CHECKING, TextIO
+
+if TYPE_CHECKING:
+    from rich.progress import Progress as Bar
+    from rich.progress import TaskID
 
 __all__ = ["Progress", "progress_mode"]
 
@@ -34,8 +38,8 @@ class Progress:
         self.mode = mode
         self.stream = sys.stderr if stream is None else stream
         self.totals = {"de": iterations, "pso": iterations, "polish": polish_iterations}
-        self._bar = None
-        self._task = None
+        self._bar: Bar | None = None
+        self._task: TaskID | None = None
         self._stage = None
         self._degree = None
         self._last = 0.0
@@ -71,7 +75,7 @@ class Progress:
             self._stage = stage
             self._open(stage)
         if self.mode == "bar" and self._bar is not None:
-            self._bar.update(self._task, completed=event.get("nit", 0),
+            self._bar.update(self._bar_task(), completed=event.get("nit", 0),
                              objective=f"{event.get('fun', float('nan')):.5f}")
             return
         now = time.monotonic()
@@ -97,6 +101,12 @@ class Progress:
         self._bar.start()
         self._task = self._bar.add_task(STAGES.get(stage, stage), total=self.totals.get(stage),
                                         degree=self._degree, objective="…")
+
+    def _bar_task(self) -> TaskID:
+        """The bar's task, which an open bar always has (``_open`` sets both)."""
+        if self._task is None:
+            raise RuntimeError("Progress: a bar without its task")  # a bug of ipfit's
+        return self._task
 
     def _close_bar(self) -> None:
         if self._bar is not None:

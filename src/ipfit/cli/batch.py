@@ -7,9 +7,13 @@ import signal
 import sys
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ._common import cli_names, positive_int
 from .fit import _OPTION_NAMES, _parse_degree, add_fit_options, search_settings
+
+if TYPE_CHECKING:
+    from rich.progress import Progress, TaskID
 
 NAME = "batch"
 HELP = "fit many shapes in parallel on Dask (files, folders, globs, bundled names)"
@@ -69,7 +73,8 @@ class BatchProgress:
 
     def __init__(self, mode: str, stream=None) -> None:
         self.mode, self.stream = mode, sys.stderr if stream is None else stream
-        self._bar = self._task = None
+        self._bar: Progress | None = None
+        self._task: TaskID | None = None
 
     def __call__(self, event: dict) -> None:
         if self.mode == "off":
@@ -87,13 +92,19 @@ class BatchProgress:
                                      console=Console(file=self.stream), transient=True)
                 self._bar.start()
                 self._task = self._bar.add_task("batch", total=event["total"], counts=counts)
-            self._bar.update(self._task, completed=finished, counts=counts)
+            self._bar.update(self._bar_task(), completed=finished, counts=counts)
             if event["status"] == "failed":
                 self._bar.console.print(f"{event['name']}: failed: {event['error']}")
             return
         error = f": {event['error']}" if event["status"] == "failed" else ""
         self.stream.write(f"[{finished}/{event['total']}] {event['name']}: {event['status']}{error}; {counts}\n")
         self.stream.flush()
+
+    def _bar_task(self) -> TaskID:
+        """The bar's task, which an open bar always has (both are set together)."""
+        if self._task is None:
+            raise RuntimeError("BatchProgress: a bar without its task")  # a bug of ipfit's
+        return self._task
 
     def close(self) -> None:
         if self._bar is not None:

@@ -37,7 +37,7 @@ def run(args: argparse.Namespace) -> int:
     outputs = Outputs([args.output], inputs=[args.result, *recorded_sources(view.data)]) if args.output else None
     poly = view.fit(args.degree, name="--degree")
     source = to_source(poly, args.to)
-    if args.output:
+    if outputs is not None:  # args.output
         with outputs.writing() as stage:
             write_text_atomic(stage(args.output), source)
         print(f"{args.output}: {args.to} source of a degree-{poly.degree} {poly.dim}D polynomial")

@@ -237,8 +237,11 @@ def run(args: argparse.Namespace) -> int:
                                 "--points DATA), or check the fit.")
     with outputs.writing() as stage:
         zero_set.save(stage(args.output))
-    what = (f"{len(zero_set.vertices)} vertices, {len(zero_set.faces)} faces" if zero_set.dim == 3
-            else f"{len(zero_set.curves)} curves")
+    if zero_set.dim == 3:
+        mesh_vertices, mesh_faces = zero_set._mesh()
+        what = f"{len(mesh_vertices)} vertices, {len(mesh_faces)} faces"
+    else:
+        what = f"{len(zero_set.curves)} curves"
     print(f"{args.output}: degree {poly.degree}, {what}, {zero_set.n_components} component(s), "
           f"{'closed' if zero_set.closed else 'open'} in the box, grid step {zero_set.step:.4g}")
     if summary:

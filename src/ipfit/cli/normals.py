@@ -54,7 +54,8 @@ def _load(spec: str):
     cloud = load(spec)
     if not isinstance(cloud.source, Path):
         return cloud.points, cloud.normals, f"the bundled '{cloud.name}' reference", cloud.name, cloud.faces
-    return cloud.points, cloud.normals, _SOURCES.get(cloud.normals_source), str(cloud.source), cloud.faces
+    source = None if cloud.normals_source is None else _SOURCES.get(cloud.normals_source)
+    return cloud.points, cloud.normals, source, str(cloud.source), cloud.faces
 
 
 def run(args: argparse.Namespace) -> int:

@@ -53,7 +53,7 @@ def run(args: argparse.Namespace) -> int:
     results = reproduce(args.output, args.config, seed=args.seed, only=args.only, datasets=args.datasets,
                         log=None if args.quiet else log, command=command)
     if not args.quiet:
-        counts = {}
+        counts: dict[str, int] = {}  # verdict -> claims
         for row in results["summary"]:
             counts[row["verdict"]] = counts.get(row["verdict"], 0) + 1
         print(f"wrote {args.output}/README.md ({len(results['figures'])} figures); claims: "

@@ -80,7 +80,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"{'distance_true':<18}mean {dist['projected_mean']:.6g}, max {dist['projected_max']:.6g} "
               f"(closest points on the zero set, {dist['n_points']} data points)")
         print(f"{'distance_taubin':<18}mean {dist['taubin_mean']:.6g}, max {dist['taubin_max']:.6g} (|f| / |grad f|)")
-    if args.write:
+    if outputs is not None:  # args.write
         data = dict(view.data)
         data["quality"] = q.to_dict()  # a new key at the end, or the old one updated in place
         with outputs.writing() as stage:

@@ -131,10 +131,19 @@ def _load(name: str):
         points = read_points(path).points
         return points, contour_normals(points, span=CONTOUR_SPAN), None, "contour"
     mesh = read_mesh(path)
+    faces = _bundled(mesh.faces, "faces", path)
     if entry.normals == "file" and mesh.normals is not None:
         normals, source = mesh.normals, "file"
     else:
-        normals, source = fill_missing_normals(mesh.points, vertex_normals_from_faces(mesh.points, mesh.faces)), "faces"
-    for arr in (mesh.points, normals, mesh.faces):
+        filled = fill_missing_normals(mesh.points, vertex_normals_from_faces(mesh.points, faces))
+        normals, source = _bundled(filled, "normals", path), "faces"
+    for arr in (mesh.points, normals, faces):
         arr.setflags(write=False)
-    return mesh.points, normals, mesh.faces, source
+    return mesh.points, normals, faces, source
+
+
+def _bundled(arr: NDArray | None, what: str, path: Path) -> NDArray:
+    """``arr``, which every bundled mesh has (its faces, normals where none has a direction)."""
+    if arr is None:
+        raise RuntimeError(f"{path}: a bundled mesh without {what}")  # a bug of ipfit's data, not an input error
+    return arr

@@ -76,6 +76,6 @@ def load(spec: str | os.PathLike, *, max_points: int | None = None, rng=0) -> Cl
     if max_points is not None and len(points) > max_points:
         # the draw of ipfit.read_points on a file of these points
         keep = np.sort(generator.choice(len(points), max_points, replace=False))
-        points, normals, faces = points[keep], normals[keep], None
+        points, normals, faces = points[keep], None if normals is None else normals[keep], None
     return Cloud(points, normals, faces, name=name, source=name, n_file=len(dataset.points),
                  normals_source=dataset.normals_source)

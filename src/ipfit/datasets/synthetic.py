@@ -81,7 +81,7 @@ def ellipsoid(n: int = 500, axes=(2.0, 1.5, 1.0), center=(0.0, 0.0, 0.0), *, rng
     pts = d * ax
     nrm = _unit(d / ax)
     c = np.asarray(center, dtype=float)
-    terms = {(0, 0, 0): float(np.sum(c**2 / ax**2)) - 1}
+    terms: dict[tuple[int, ...], float] = {(0, 0, 0): float(np.sum(c**2 / ax**2)) - 1}
     for j in range(3):
         e2 = [0, 0, 0]
         e2[j] = 2

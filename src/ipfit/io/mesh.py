@@ -56,7 +56,8 @@ class Merged(NamedTuple):
 
     points: NDArray[np.float64]
     normals: NDArray[np.float64] | None
-    index: NDArray[np.intp]
+    # the field shadows tuple.index, as mypy says; it is the public name of the field
+    index: NDArray[np.intp]  # type: ignore[assignment]
 
 
 def merge_duplicates(points: ArrayLike, normals: ArrayLike | None = None) -> Merged:
@@ -92,7 +93,7 @@ def merge_duplicates(points: ArrayLike, normals: ArrayLike | None = None) -> Mer
     return Merged(merged, nrm, index)
 
 
-def _scaled(points: NDArray) -> NDArray[np.float64]:
+def _scaled(points: ArrayLike) -> NDArray[np.float64]:
     """Points times a power of two that brings the largest coordinate into [0.5, 1): exact, and
     differences of scaled points cannot overflow."""
     pts = np.asarray(points, dtype=np.float64)

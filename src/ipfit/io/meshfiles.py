@@ -11,7 +11,9 @@ from __future__ import annotations
 
 import io as _io
 import re
+from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -36,7 +38,7 @@ def _ply_check_size(path: Path, raw: bytes) -> None:
     body = raw[body_start + 1:] if body_start >= 0 else b""
     header = raw[:end].decode("ascii", "replace").splitlines()
     text = any(line.split()[:2] == ["format", "ascii"] for line in header)
-    elements = []
+    elements: list[list[Any]] = []  # [name, rows, bytes per row at least]
     for line in header:
         words = line.split()
         if not words:
@@ -137,9 +139,11 @@ def _trimesh_parts(result) -> list[dict]:
     return [result] if isinstance(result, dict) else []
 
 
-def _merge_parts(path: Path, parts: list[tuple[dict, np.ndarray | None]], empty: str) -> Raw:
+def _merge_parts(path: Path, parts: Sequence[tuple[dict, np.ndarray | None]], empty: str) -> Raw:
     """One cloud from trimesh's per-mesh dicts, each moved by its 4x4 transform (or None)."""
-    points, normals, faces = [], [], []
+    points: list[NDArray[np.float64]] = []
+    normals: list[NDArray[np.float64] | None] = []
+    faces: list[NDArray[np.int64]] = []
     offset = 0
     dropped = None
     for part, transform in parts:
@@ -165,7 +169,8 @@ def _merge_parts(path: Path, parts: list[tuple[dict, np.ndarray | None]], empty:
         offset += len(v)
     if not points:
         raise ReadError(f"{path}: {empty}")
-    nrm = np.concatenate(normals) if all(n is not None for n in normals) else None
+    given = [n for n in normals if n is not None]
+    nrm = np.concatenate(given) if len(given) == len(normals) else None
     return Raw(np.concatenate(points), nrm, np.concatenate(faces) if faces else None,
                "file" if nrm is not None else None, dropped)
 
@@ -303,6 +308,8 @@ def read_scene(path: Path, raw: bytes) -> Raw:
     of the scene, each moved by its node's transform, merged into one cloud."""
     import trimesh
 
+    load: Callable[..., Any]  # trimesh's loader of the format
+    kwargs: dict[str, Any]
     if path.suffix.lower() == ".3mf":
         optional_module("lxml", path, "3MF")
         from trimesh.exchange.threemf import load_3MF

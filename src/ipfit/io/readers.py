@@ -61,6 +61,7 @@ class PointCloud(_Pair):
     """
 
     normals_source: str | None = None  # class defaults for copies made by _replace / _make
+    n_file: int  # set by __new__; a copy made by _replace / _make reads it through __getattr__
 
     def __new__(cls, points, normals, normals_source: str | None = None, n_file: int | None = None):
         self = super().__new__(cls, points, normals)

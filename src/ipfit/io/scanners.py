@@ -15,6 +15,7 @@ import struct
 from pathlib import Path
 
 import numpy as np
+from numpy.typing import NDArray
 
 from ..exceptions import ReadError
 from ._base import Raw, optional_module
@@ -133,7 +134,8 @@ def _pcd_number(text: str) -> str:
 def _pcd_header(path: Path, raw: bytes) -> tuple[dict[str, list[str]], int]:
     """The PCD header's entries {key (lower case): values} as pypcd4 reads them, and the offset
     of the data after the DATA line."""
-    lines, at = [], 0
+    lines: list[str] = []
+    at = 0
     while at < len(raw) and len(lines) < _PCD_MAX_HEADER_LINES:
         end = raw.find(b"\n", at)
         end = len(raw) if end < 0 else end + 1
@@ -260,7 +262,8 @@ def read_e57(path: Path, raw: bytes) -> Raw:
     pye57 = optional_module("pye57", path, "E57")
     from pye57 import libe57
 
-    points, normals = [], []
+    points: list[NDArray[np.float64]] = []
+    normals: list[NDArray[np.float64] | None] = []
     with pye57.E57(str(path)) as e57:
         for index in range(e57.scan_count):
             header = e57.get_header(index)
@@ -284,5 +287,5 @@ def read_e57(path: Path, raw: bytes) -> Raw:
                 normals[-1] = nrm if nrm.shape == xyz.shape else None
     if not points:
         raise ReadError(f"{path}: the E57 file holds no scans. Export the point cloud into it.")
-    nrm = np.concatenate(normals) if all(n is not None for n in normals) else None
-    return Raw(np.concatenate(points), nrm)
+    given = [n for n in normals if n is not None]
+    return Raw(np.concatenate(points), np.concatenate(given) if len(given) == len(normals) else None)

@@ -117,8 +117,9 @@ def read_image(path: Path, raw: bytes) -> Raw:
         raise ReadError(f"{path}: not a readable image (Pillow does not recognise its content). "
                         "Check that the file is complete and of the format its extension says.") from None
     except Image.DecompressionBombError:  # Pillow's own limit, raised before the size is known
+        # Pillow raises it only while its limit is set: MAX_IMAGE_PIXELS is an int here, not None
         raise ReadError(f"{path}: expected at most {MAX_IMAGE_PIXELS:,} pixels, got more than "
-                        f"{2 * Image.MAX_IMAGE_PIXELS:,}. Downscale the image.") from None
+                        f"{2 * Image.MAX_IMAGE_PIXELS:,}. Downscale the image.") from None  # type: ignore[operator]
     except (OSError, ValueError, SyntaxError) as exc:
         if isinstance(exc, InvalidInputError):  # ours: the size, or no shape to trace
             raise ReadError(f"{path}: {str(exc).removeprefix('image: ')}") from None

@@ -107,7 +107,8 @@ def _write_npy(path: Path, pts: NDArray, nrm: NDArray | None, binary: bool) -> N
 def _write_npz(path: Path, pts: NDArray, nrm: NDArray | None, binary: bool) -> None:
     arrays = {"points": pts} if nrm is None else {"points": pts, "normals": nrm}
     with atomic_path(path) as tmp, open(tmp, "wb") as fh:
-        np.savez_compressed(fh, **arrays)
+        # numpy's stubs fear a key allow_pickle=; the keys are "points" and "normals"
+        np.savez_compressed(fh, **arrays)  # type: ignore[arg-type]
 
 
 def _as_3d(pts: NDArray) -> NDArray:

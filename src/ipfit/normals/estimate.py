@@ -111,16 +111,16 @@ def _refit_along_curve(points: NDArray, idx: NDArray[np.intp], normals: NDArray,
     ok = behind.any(axis=1)
     second = np.where(ok, idx[:, 1:][at, np.argmax(behind, axis=1)], n)
     links = np.vstack([np.column_stack([idx[:, 1], second]), [n, n]])  # row n: "no point"
-    chain = [at]
+    columns = [at]
     for side in (0, 1):
         prev, cur = at, links[at, side]
         for _ in range(hops):
             # the link prev → cur must be mutual; then go on to cur's other link
             mutual = (links[cur, 0] == prev) | (links[cur, 1] == prev)
             ok &= mutual & (cur < n)
-            chain.append(np.where(ok, cur, at))
+            columns.append(np.where(ok, cur, at))
             prev, cur = cur, np.where(links[cur, 0] == prev, links[cur, 1], links[cur, 0])
-    chain = np.column_stack(chain)
+    chain = np.column_stack(columns)
     ordered = np.sort(chain, axis=1)
     ok &= (np.diff(ordered, axis=1) > 0).all(axis=1)  # a chain round a tiny loop repeats points
     use = np.flatnonzero(ok)

@@ -243,7 +243,7 @@ def _consistency(points: NDArray, normals: NDArray, i: NDArray, j: NDArray, *, w
         ni, nj = normals[i[rows]], normals[j[rows]]
         ai, aj = np.einsum("ij,ij->i", ni, e), np.einsum("ij,ij->i", nj, e)
         c[rows] = np.einsum("ij,ij->i", ni, nj) - 2.0 * ai * aj
-        if with_off_plane:
+        if off is not None:  # with_off_plane
             off[rows] = np.abs(ai * aj)
     return (c, off) if with_off_plane else c
 
@@ -261,7 +261,7 @@ def _anchors(points: NDArray, labels: NDArray, ncomp: int) -> tuple[NDArray[np.i
     centroid = np.stack([np.bincount(labels, points[:, j], ncomp) for j in range(dim)], axis=1) / counts[:, None]
     radial = points - centroid[labels]
     seeds = argmax_per_group(np.einsum("ij,ij->i", radial, radial), labels, ncomp)
-    idx, dirs = [seeds], [radial[seeds]]
+    idx_parts, dir_parts = [seeds], [radial[seeds]]
     candidates = np.arange(len(points))
     if len(points) > _HULL_ALL:
         # Every point of a sphere is a hull vertex: a million anchors would make a million pieces
@@ -277,10 +277,10 @@ def _anchors(points: NDArray, labels: NDArray, ncomp: int) -> tuple[NDArray[np.i
         corners = hull.simplices.ravel()
         facet = np.repeat(hull.equations[:, :dim], dim, axis=0)
         acc = np.stack([np.bincount(corners, facet[:, j], len(candidates)) for j in range(dim)], axis=1)
-        idx.insert(0, candidates[hull.vertices])
-        dirs.insert(0, acc[hull.vertices])
-    idx = np.concatenate(idx)
-    dirs = np.concatenate(dirs)
+        idx_parts.insert(0, candidates[hull.vertices])
+        dir_parts.insert(0, acc[hull.vertices])
+    idx = np.concatenate(idx_parts)
+    dirs = np.concatenate(dir_parts)
     dirs, ok = unit_rows_mask(dirs)
     dirs[~ok, 0] = 1.0  # a component whose points all coincide has no outward side: any will do
     idx, first = np.unique(idx, return_index=True)

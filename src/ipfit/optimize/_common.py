@@ -53,7 +53,8 @@ class PopulationSolver(abc.ABC):
 
     name = "population solver"
 
-    def __init__(self, func: Callable[[NDArray], ArrayLike], init: ArrayLike, *, maxiter: int = 500,
+    # func(pop), or func(pop, bound) when a subclass screens (DifferentialEvolution(screen=True))
+    def __init__(self, func: Callable[..., ArrayLike], init: ArrayLike, *, maxiter: int = 500,
                  rng=None, callback: Callable[[OptimizeResult], Any] | None = None,
                  project: Callable[[NDArray], NDArray] | None = None, min_population: int = 2,
                  stall_generations: int | None = None, stall_tolerance: float = 1e-4) -> None:

@@ -123,7 +123,7 @@ class DifferentialEvolution(PopulationSolver):
 
     name = "de"
 
-    def __init__(self, func: Callable[[NDArray], ArrayLike], init: ArrayLike, *, mutation: float = 0.7,
+    def __init__(self, func: Callable[..., ArrayLike], init: ArrayLike, *, mutation: float = 0.7,
                  recombination: float = 0.9, maxiter: int = 500, rng=None,
                  callback: Callable[[OptimizeResult], Any] | None = None,
                  project: Callable[[NDArray], NDArray] | None = None, stall_generations: int | None = None,

@@ -83,9 +83,9 @@ def run_adaptive_one(data: Data, method: str, ws: Workspace) -> dict:
     """One whole adaptive path with ``method`` and the degree Algorithm 1 selects on it for each ε."""
     cfg = ws.cfg
     result, records = adaptive_fit(data, method, cfg, rng_for(ws.seed, "adaptive", data.name, method))
-    path = []
+    path: list[dict[str, Any]] = []
     for d in result.degrees:
-        entry = {"degree": d.degree, "distance": d.distance, "dissimilarity": d.dissimilarity,
+        entry: dict[str, Any] = {"degree": d.degree, "distance": d.distance, "dissimilarity": d.dissimilarity,
                  "smoothness": d.smoothness, "seconds": d.seconds, "method": d.polynomial.method}
         entry.update(quality_entry(d.polynomial, data, cfg))
         entry.update(refine_summary(records[d.degree]))

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -193,11 +194,11 @@ def write_figures(results: Mapping, ws: Workspace, out: Path, log: Callable[[str
         for name in results["adaptive"]["datasets"]:
             for method in METHODS:
                 attempt(f"adaptive/{name}/{method}", f"fig_adaptive_{name}_{method}.png",
-                        lambda p, n=name, m=method: figure_adaptive(n, m, results, ws, p))
+                        partial(figure_adaptive, name, method, results, ws))
     if "ridge" in results:
         for name in results["ridge"]["datasets"]:
             attempt(f"ridge/{name}", f"fig_ridge_{name}.png",
-                    lambda p, n=name: figure_ridge(n, results["ridge"], ws, p))
+                    partial(figure_ridge, name, results["ridge"], ws))
     if "noise" in results:
         attempt("noise", "fig_noise.png", lambda p: figure_noise(results["noise"], ws, p))
     if "convergence" in results:

@@ -8,7 +8,7 @@ reason, never as an exception that stops the run.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Iterable
 from typing import Any
 
 import numpy as np
@@ -69,7 +69,7 @@ def refine_summary(result) -> dict:
             "improvement": _improvement(seed, float(result.distance))}
 
 
-def history_entry(res, history: Sequence[float], *, nfev: int | None = None, seconds: float | None = None,
+def history_entry(res, history: Iterable[float], *, nfev: int | None = None, seconds: float | None = None,
                   best_seed_distance: float | None = None, switch: int | None = None) -> dict:
     """A convergence curve (best distance per iteration) and how the refinement ``res`` ended.
 

@@ -167,9 +167,8 @@ def _ridge_rows(exp: Mapping | None) -> list[dict]:
                   "kappa_max": last["kappa"], "rounded_kappas": [f["kappa"] for f in rounded],
                   "ours_max_error": ours_err, "rounded_max_errors": [f["max_error"] for f in rounded],
                   "ours_roundness": ds["ours"]["roundness"]}
-        first = rounded[0] if rounded else None
         text = (f"roundness {fmt(base['roundness'], 3)} (κ=0) → {fmt(last['roundness'], 3)} (κ={last['kappa']:g}); "
-                + (f"rounder from κ={first['kappa']:g} on; largest data-to-curve error ours "
+                + (f"rounder from κ={rounded[0]['kappa']:g} on; largest data-to-curve error ours "
                    f"{fmt(ours_err, 3)} vs 3L+RRR {fmt(min(f['max_error'] for f in rounded), 3)}–"
                    f"{fmt(max(f['max_error'] for f in rounded), 3)}" if rounded else "no κ made it rounder"))
         rows.append({"claim": f"3L+RRR rounds off corners ({name}, degree {ds['degree']})",
@@ -194,7 +193,7 @@ def _noise_rows(exp: Mapping | None) -> list[dict]:
 
 
 def _improvement_rows(results: Mapping) -> list[dict]:
-    runs = []
+    runs: list[tuple[str, Any]] = []  # (method, improvement)
     for ds in ((results.get("adaptive") or {}).get("datasets") or {}).values():
         for method, run in ds["runs"].items():
             runs.extend((method, p["improvement"]) for p in run["path"])

@@ -63,7 +63,7 @@ def _as_dict(result) -> dict:
 class _Fit(NamedTuple):
     degree: int
     polynomial: ImplicitPolynomial
-    entry: dict
+    entry: Mapping[str, Any]
 
 
 def _fits(data: dict) -> tuple[list[_Fit], int | None]:
@@ -89,7 +89,7 @@ def _fmt(value, digits: int = 4) -> str:
     return str(value)
 
 
-def _rule_text(entry: dict) -> str | None:
+def _rule_text(entry: Mapping[str, Any]) -> str | None:
     found = [entry[k] for k in _RULE_KEYS if entry.get(k) not in (None, "", [], {})]
     return "; ".join(_fmt(v) for v in found) if found else None
 
@@ -131,7 +131,7 @@ def _table(go, fits: list[_Fit], selected: int | None, current: int, visible: bo
 
 def _zero_set_traces(go, dim: int, zs: ZeroSet, flags: NDArray[np.bool_], degree: int, visible: bool,
                      max_faces: int) -> list:
-    traces = []
+    traces: list[Any] = []  # plotly traces
     if zs.is_empty:
         return traces
     if dim == 2:
@@ -145,14 +145,15 @@ def _zero_set_traces(go, dim: int, zs: ZeroSet, flags: NDArray[np.bool_], degree
                                      name=f"degree {degree}" + (" spurious" if spurious else ""),
                                      hovertemplate=f"degree {degree} zero set<extra></extra>"))
         return traces
+    vertices, faces = zs._mesh()
     face_flags = flags[zs.component_labels]
     for spurious in (False, True):
-        sel = zs.faces[face_flags == spurious]
+        sel = faces[face_flags == spurious]
         if not len(sel):
             continue
         # Each class on its own: a small spurious bubble keeps its faces whatever the main sheet needs.
         used, sel = np.unique(sel, return_inverse=True)
-        v, f, _ = decimate(zs.vertices[used], sel.reshape(-1, 3), max_faces)
+        v, f, _ = decimate(vertices[used], sel.reshape(-1, 3), max_faces)
         # A spurious part often sits inside the shape: see through the sheet around it.
         opacity = 1.0 if spurious or not face_flags.any() else 0.45
         traces.append(go.Mesh3d(x=v[:, 0].astype(np.float32), y=v[:, 1].astype(np.float32),
@@ -275,7 +276,7 @@ def result_figure(result, points: ArrayLike | None = None, *, faces: ArrayLike |
         zs = extract_zero_set(fit.polynomial, bounds=box, resolution=resolution)
         q = fit.entry.get("quality") or {}
         recorded = q.get("n_spurious")
-        if trim is not None:
+        if trim is not None and pts is not None:  # pts is always set with trim (checked above)
             zs = zs.trimmed(pts, trim, faces=faces)
             # trimming splits components: a recorded count no longer matches them, unless it is 0
             recorded = 0 if recorded == 0 else None
