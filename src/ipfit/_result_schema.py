@@ -18,8 +18,9 @@ import math
 import numbers
 import os
 import sys
+from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Any, Callable, Mapping, NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -214,7 +215,8 @@ SCHEMA: tuple[Key, ...] = (
     _k("input.n_points", "integer >= 0", "number of points"),
     _k("input.normals", "string", '"file" or "estimated"'),
     _k("batch", "object", "written by ipfit batch / ipfit.fit_many"),
-    _k("batch.settings_hash", "string", "hash of the fit settings; a result with the current hash is skipped on resume"),
+    _k("batch.settings_hash", "string",
+       "hash of the fit settings; a result with the current hash is skipped on resume"),
     _k("batch.name", "string", "the shape's name in the batch (its random generator is made from it and the seed)"),
     _k("batch.seed", "integer >= 0", "the batch seed"),
     _k("bounds", "bounds", "the data's bounding box, one [low, high] per axis"),

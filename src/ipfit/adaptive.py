@@ -2,16 +2,17 @@
 
 For g = 2, 4, …, G, fit at degree g with a fixed-degree method and, with a geometric rule,
 measure the zero set's quality; a degree rule (:class:`ipfit.rules.DegreeRule`) says whether to
-measure and repair, when to stop, which degree to take and why. This module is the loop alone. Every degree tried is kept, so a user can inspect the whole path and take
-another degree.
+measure and repair, when to stop, which degree to take and why. This module is the loop alone.
+Every degree tried is kept, so a user can inspect the whole path and take another degree.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import time
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any, Callable, Mapping
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -19,14 +20,32 @@ from numpy.typing import ArrayLike, NDArray
 from . import basis
 from ._result import Result
 from ._result_schema import check_coordinates
-from ._validation import (as_faces, as_normals, as_points, check_choice, check_enough_points, check_int,
-                          check_nonnegative, check_real, check_rng, error)
+from ._validation import (
+    as_faces,
+    as_normals,
+    as_points,
+    check_choice,
+    check_enough_points,
+    check_int,
+    check_nonnegative,
+    check_real,
+    check_rng,
+    error,
+)
 from .cloud import Cloud, as_cloud
 from .linear import LINEAR_METHODS, fit_linear
 from .normals import estimate_normals
-from .objective import Measures, measures as compute_measures
-from .options import (DEFAULT_DELTA, DEFAULT_EPSILON, DEFAULT_METHOD, DEFAULT_RULE, RECOMMENDED, REFINE_METHODS,
-                      SearchOptions)
+from .objective import Measures
+from .objective import measures as compute_measures
+from .options import (
+    DEFAULT_DELTA,
+    DEFAULT_EPSILON,
+    DEFAULT_METHOD,
+    DEFAULT_RULE,
+    RECOMMENDED,
+    REFINE_METHODS,
+    SearchOptions,
+)
 from .polynomial import ImplicitPolynomial
 from .quality import Quality, looks_like_contour, quality
 from .refine import refine
@@ -220,8 +239,9 @@ def _check_progress(progress):
     return progress
 
 
-def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *, method: str | FitFunction = DEFAULT_METHOD,
-                 options: SearchOptions | None = None, max_degree: int | None = None, min_degree: int = 2,
+def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
+                 method: str | FitFunction = DEFAULT_METHOD, options: SearchOptions | None = None,
+                 max_degree: int | None = None, min_degree: int = 2,
                  epsilon: float = DEFAULT_EPSILON, delta: float = DEFAULT_DELTA,
                  rule: str | DegreeRule = DEFAULT_RULE,
                  faces: ArrayLike | None = None, ordered_contour: bool | None = None, rng=None,

@@ -17,19 +17,18 @@ cloud (the dozen start fits of a search) factor each block once.
 from __future__ import annotations
 
 import warnings
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from math import factorial
-from typing import Callable, Iterable, Iterator, Mapping
 
 import numpy as np
 import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 
 from . import basis
-from ._validation import (check_choice, check_degree, check_enough_points, check_nonnegative,
-                          check_positive, error)
-from .exceptions import ConditioningWarning
+from ._validation import check_choice, check_degree, check_enough_points, check_nonnegative, check_positive, error
 from .cloud import Cloud, as_cloud
+from .exceptions import ConditioningWarning
 from .farfield import far_field_samples
 from .polynomial import ImplicitPolynomial, Normalization
 
@@ -469,7 +468,8 @@ def fit_3l(points: ArrayLike, normals: ArrayLike, degree: int, c: float = DEFAUL
     >>> from ipfit.datasets.synthetic import circle
     >>> shape = circle(80)
     >>> poly = fit_3l(shape.points, shape.normals, degree=2)
-    >>> bool(abs(poly([[1.0, 0.0]])[0]) < 1e-2)  # 3L is close, not exact: level sets ±c of x²+y²−1 are not at distance c
+    >>> # 3L is close, not exact: level sets ±c of x²+y²−1 are not at distance c
+    >>> bool(abs(poly([[1.0, 0.0]])[0]) < 1e-2)
     True
     """
     return _fit("3l", points, normals, degree, c=c, far_row_weight=far_row_weight)

@@ -39,10 +39,11 @@ from __future__ import annotations
 import contextlib
 import os
 import threading
+from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import Protocol, Sequence, runtime_checkable
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 import scipy.linalg
@@ -158,7 +159,7 @@ class Measures:
         return {"dissimilarity": plain(self.dissimilarity), "smoothness": plain(self.smoothness),
                 "distance": plain(self.distance), "delta": float(self.delta)}
 
-    def __getitem__(self, index) -> "Measures":
+    def __getitem__(self, index) -> Measures:
         """The measures of population member(s) ``index``."""
         pick = (lambda v: v[index]) if np.ndim(self.distance) else (lambda v: v)
         out = Measures(pick(self.dissimilarity), pick(self.smoothness), pick(self.distance), self.delta)
@@ -280,7 +281,7 @@ class Objective:
     # -- construction from raw data ---------------------------------------------------------
     @classmethod
     def from_data(cls, points: ArrayLike, normals: ArrayLike, degree: int, delta: float = DEFAULT_DELTA,
-                  **kwargs) -> "Objective":
+                  **kwargs) -> Objective:
         """Normalise ``points`` with :meth:`Normalization.from_points` (as the linear fits do)
         and build the objective in those coordinates; ``.normalization`` records the map."""
         from .polynomial import Normalization

@@ -16,8 +16,9 @@ from __future__ import annotations
 import math
 import os
 import sys
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -488,7 +489,7 @@ def plot_result(result, points: ArrayLike | None = None, path: str | os.PathLike
                 plot_surface(payload, shown, ax, zero_set=zs, spurious=flags, show_points=True, view=view, up=up,
                              max_faces=max_faces, axis_off=True)
         else:
-            g, s = zip(*payload)
+            g, s = zip(*payload, strict=True)  # payload: (degree, smoothness) pairs
             plot_smoothness(g, s, view_.selected_degree, ax)
         ax.set_title(letter + label, fontsize="medium")
     if title:

@@ -11,7 +11,8 @@ What counts as clean or done is the rule's; this module only repairs.
 from __future__ import annotations
 
 import dataclasses
-from typing import TYPE_CHECKING, Callable
+from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 
