@@ -110,7 +110,7 @@ def far_field_samples(u: NDArray[np.float64] | Cloud, normals: NDArray[np.float6
 def _points_and_normals(u, normals, required_by: str) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     if isinstance(u, Cloud):
         cloud = as_cloud(u, normals, name="u", required_by=required_by)
-        return cloud.points, cloud.unit_normals
+        return cloud.points, cloud.oriented
     u = as_points(u, "u")
     return u, as_matching(normals, u)  # arrays: the normals as given (the fits pass unit normals)
 
@@ -310,4 +310,5 @@ def fused_rows(terms, dim: int, degree: int, dtype) -> tuple[NDArray, NDArray, N
     if not far:
         return None
     parts = [t.rows(dtype) for t in far]
-    return tuple(np.ascontiguousarray(np.concatenate(column)) for column in zip(*parts, strict=True))
+    m, k, w = (np.ascontiguousarray(np.concatenate(column)) for column in zip(*parts, strict=True))
+    return m, k, w
