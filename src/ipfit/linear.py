@@ -20,6 +20,7 @@ import warnings
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from math import factorial
+from typing import cast
 
 import numpy as np
 import scipy.linalg
@@ -245,8 +246,9 @@ def _solve_taubin(problem: _Problem) -> tuple[NDArray, dict]:
 
 
 def _three_level_blocks(problem: _Problem, c: float) -> Iterator[NDArray]:
+    normals = cast(NDArray[np.float64], problem.normals)  # 3L requires normals (_prepare checked them)
     for sl in _point_chunks(problem, 3):
-        u, n = problem.u[sl], problem.normals[sl]
+        u, n = problem.u[sl], normals[sl]
         stacked = np.concatenate([u, u + c * n, u - c * n])
         targets = np.concatenate([np.zeros(len(u)), np.full(len(u), c), np.full(len(u), -c)])
         yield _augmented(problem.design(stacked), targets)
@@ -300,9 +302,10 @@ def _solve_ridge(problem: _Problem, c: float = DEFAULT_OFFSET, kappa: float = DE
 
 def _gradient_blocks(problem: _Problem) -> Iterator[NDArray]:
     """Rows [∂M/∂x_k | n_k]: the gradient-one rows before their weight √μ."""
+    normals = cast(NDArray[np.float64], problem.normals)  # gradient-one requires normals (_prepare checked them)
     for sl in _point_chunks(problem, problem.dim):
         m, dm = basis.monomials_and_gradients(problem.u[sl], problem.degree)
-        yield _augmented(dm.reshape(-1, m.shape[1]), problem.normals[sl].T.ravel())
+        yield _augmented(dm.reshape(-1, m.shape[1]), normals[sl].T.ravel())
 
 
 def _solve_gradient_one(problem: _Problem, mu: float = DEFAULT_MU, far_row_weight: float = 0.0,

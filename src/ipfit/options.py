@@ -54,8 +54,8 @@ DEFAULT_START_FITS = ("3l", "ridge", "gradient_one", "taubin", "lstsq", "3l(c=0.
                       "ridge(kappa=1e-6)", "ridge(kappa=1e-3)", "gradient_one(mu=0.1)", "gradient_one(mu=10)")
 
 #: Defaults of the method-specific settings (the paper's DE and PSO parameters, Section 5.2).
-METHOD_DEFAULTS: Mapping[str, float | int] = {"mutation": 0.7, "recombination": 0.9, "chi": 0.729, "c1": 2.05,
-                                              "c2": 2.05, "polish_iterations": "auto"}
+METHOD_DEFAULTS: Mapping[str, float | int | str] = {"mutation": 0.7, "recombination": 0.9, "chi": 0.729,
+                                                    "c1": 2.05, "c2": 2.05, "polish_iterations": "auto"}
 #: What "auto" means for the settings whose best value depends on the dimension (measured in
 #: ``benchmarks/bench_search_budget.py``). A contour's 1,000 spread points sample it about as
 #: densely as 3,000 do a surface and halve the search's time on the larger contours; contours

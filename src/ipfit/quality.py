@@ -41,7 +41,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -308,7 +308,8 @@ def _measure_now(model, cloud: Cloud, *, ordered_contour, tau, tau_fraction, bou
         starts, ends, _ = zs.segments()
         target = Target(samples, "segments", (starts, ends), tau=tau)
     else:
-        target = mesh_target(zs.vertices, zs.faces, samples, tau)
+        # a 3D zero set that is not empty has its mesh
+        target = mesh_target(cast(NDArray[np.float64], zs.vertices), cast(NDArray[np.int64], zs.faces), samples, tau)
     d_data = target.distance(pts)
     d_zero = ref.distance(samples.points)
     recall = float(np.mean(d_data <= tau))
