@@ -12,7 +12,7 @@ import dataclasses
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -99,10 +99,11 @@ class DegreeResult(Result):
 
     def to_dict(self) -> dict:
         """The entry of ``degrees`` in the JSON result (contract keys, plus nit/nfev/quality)."""
-        out = {"degree": self.degree, "dissimilarity": self.dissimilarity, "smoothness": self.smoothness,
-               "distance": self.distance, "seconds": self.seconds, "method": self.polynomial.method,
-               "coefficients": [float(c) for c in self.polynomial.coefficients], "nit": self.nit,
-               "nfev": self.nfev, "success": self.success, "message": self.message}
+        out: dict[str, Any] = {
+            "degree": self.degree, "dissimilarity": self.dissimilarity, "smoothness": self.smoothness,
+            "distance": self.distance, "seconds": self.seconds, "method": self.polynomial.method,
+            "coefficients": [float(c) for c in self.polynomial.coefficients], "nit": self.nit,
+            "nfev": self.nfev, "success": self.success, "message": self.message}
         if self.quality is not None:
             out["quality"] = self.quality.to_dict()
         if self.cleanup:
@@ -209,7 +210,7 @@ class _Fitter:
             return poly, (), 0, 0, True, "custom fit"
         if self.method in LINEAR_METHODS:
             return fit_linear(cloud, None, degree, self.method), (), 0, 0, True, "linear fit"
-        options = options or self.options
+        options = cast(SearchOptions, options or self.options)  # a refinement method: check_settings gave options
 
         def report(state):
             self.progress({"event": "iteration", "degree": degree, "stage": state.message, "nit": state.nit,
@@ -307,8 +308,13 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
     >>> result.selected_degree, result.success
     (2, True)
     """
-    given = as_cloud(points, normals, faces=faces) if isinstance(points, Cloud) else None  # refuses normals, faces
-    pts = given.points if given is not None else as_points(points)
+    given: Cloud | None
+    if isinstance(points, Cloud):
+        given = as_cloud(points, normals, faces=faces)  # refuses normals, faces
+        pts = given.points
+    else:
+        given = None
+        pts = as_points(points)
     check_coordinates(pts)  # the result must be readable: refuse up front what it could not record
     dim = pts.shape[1]
     method, options, rule, epsilon, delta, min_degree = check_settings(method, options, rule, epsilon, delta,
@@ -385,7 +391,8 @@ def _select(results, rule: DegreeRule, epsilon: float, reason: str, fixed: bool)
     return index, reason, rule.explain(results, index, reason, epsilon)
 
 
-def check_settings(method, options, rule, epsilon, delta, min_degree, max_degree=None):
+def check_settings(method, options, rule, epsilon, delta, min_degree,
+                   max_degree=None) -> tuple[Any, SearchOptions | None, DegreeRule, float, float, int]:
     """The data-independent arguments of :func:`fit_adaptive`, checked (the one place: batches
     check them once before sending shapes to workers). Returns them normalised (the rule as its
     :class:`~ipfit.rules.DegreeRule` object)."""

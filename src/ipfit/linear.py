@@ -512,7 +512,7 @@ def fit_gradient_one(points: ArrayLike, normals: ArrayLike, degree: int, mu: flo
     return _fit("gradient_one", points, normals, degree, mu=mu, far_row_weight=far_row_weight)
 
 
-def fit_linear(points: ArrayLike, normals: ArrayLike | None, degree: int, method: str = "3l", *,
+def fit_linear(points: ArrayLike | Cloud, normals: ArrayLike | None, degree: int, method: str = "3l", *,
                normalization: Normalization | None = None, **params: float) -> ImplicitPolynomial:
     """Dispatch to one of :data:`LINEAR_METHODS` by name (``'lstsq'``, ``'taubin'``, ``'3l'``,
     ``'ridge'``, ``'gradient_one'``, or ``'3l-far'``: 3L with far-field rows at the default
