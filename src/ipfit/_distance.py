@@ -12,7 +12,7 @@ here and this module imports nothing of the package at import time.
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import NamedTuple, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -167,7 +167,7 @@ class Target:
         self.reach = _piece_radius(samples, kind, corners)
         self.band = 2 * tau + self.reach
         self.tree = cKDTree(samples.points, leafsize=_LEAF_SIZE)
-        self._cells = None
+        self._cells: NDArray[np.int64] | None = None
 
     def _build_cells(self) -> None:
         # Cells of side `band` holding samples, grown by one cell: a query outside them is
@@ -195,10 +195,11 @@ class Target:
             return np.ones(len(query), dtype=bool)
         if self._cells is None:
             self._build_cells()
+        cells = cast(NDArray[np.int64], self._cells)  # built just above
         keys = np.floor(query / self.band).astype(np.int64)
         inside = np.all((keys >= self._lo) & (keys < self._lo + self._extent), axis=1)
         out = np.zeros(len(query), dtype=bool)
-        out[inside] = np.isin(self._encode(keys[inside]), self._cells)
+        out[inside] = np.isin(self._encode(keys[inside]), cells)
         return out
 
     def _nearest(self, query: NDArray, k: int, bound: float = np.inf) -> tuple[NDArray, NDArray]:
@@ -250,7 +251,8 @@ def _piece_radius(samples: Samples, kind: str, corners: tuple[NDArray, ...]) -> 
     """Largest distance from a sample to a point of the piece of its element it stands for."""
     if kind == "points" or not len(samples.points):
         return 0.0
-    count = np.bincount(samples.elements, minlength=len(corners[0]))
+    # samples of segments or faces record their element
+    count = np.bincount(cast(NDArray[np.int64], samples.elements), minlength=len(corners[0]))
     used = count > 0
     ends = [c[used] for c in corners]
     if kind == "segments":  # midpoints of `count` equal pieces

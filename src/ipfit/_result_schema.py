@@ -18,8 +18,9 @@ import math
 import numbers
 import os
 import sys
+from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Any, Callable, Mapping, NamedTuple
+from typing import Any, NamedTuple, TypeVar
 
 import numpy as np
 
@@ -214,7 +215,8 @@ SCHEMA: tuple[Key, ...] = (
     _k("input.n_points", "integer >= 0", "number of points"),
     _k("input.normals", "string", '"file" or "estimated"'),
     _k("batch", "object", "written by ipfit batch / ipfit.fit_many"),
-    _k("batch.settings_hash", "string", "hash of the fit settings; a result with the current hash is skipped on resume"),
+    _k("batch.settings_hash", "string",
+       "hash of the fit settings; a result with the current hash is skipped on resume"),
     _k("batch.name", "string", "the shape's name in the batch (its random generator is made from it and the seed)"),
     _k("batch.seed", "integer >= 0", "the batch seed"),
     _k("bounds", "bounds", "the data's bounding box, one [low, high] per axis"),
@@ -329,7 +331,7 @@ def _check_degree(degree: int, dim: int, where: str, source: str) -> None:
 
 def _check_depth(data: Mapping, source: str) -> None:
     """Refuse nesting deeper than :data:`MAX_DEPTH` (checked without recursion: that is what fails)."""
-    stack = [(data, 1)]
+    stack: list[tuple[Mapping | list, int]] = [(data, 1)]
     while stack:
         value, depth = stack.pop()
         if depth > MAX_DEPTH:
@@ -362,7 +364,11 @@ def check_coordinates(points: np.ndarray, name: str = "points") -> None:
                     "Subtract the offset first (move the data near the origin).")
 
 
-def validate_result(data: Any, source: str = "result") -> dict:
+# validate_result returns the object it was given (a Mapping once checked)
+_Data = TypeVar("_Data")
+
+
+def validate_result(data: _Data, source: str = "result") -> _Data:
     """Check a result's JSON object against :data:`SCHEMA` and its internal consistency.
 
     Returns ``data`` itself (unchanged) when it is valid; otherwise raises

@@ -2,16 +2,17 @@
 
 For g = 2, 4, …, G, fit at degree g with a fixed-degree method and, with a geometric rule,
 measure the zero set's quality; a degree rule (:class:`ipfit.rules.DegreeRule`) says whether to
-measure and repair, when to stop, which degree to take and why. This module is the loop alone. Every degree tried is kept, so a user can inspect the whole path and take
-another degree.
+measure and repair, when to stop, which degree to take and why. This module is the loop alone.
+Every degree tried is kept, so a user can inspect the whole path and take another degree.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import time
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any, Callable, Mapping
+from typing import Any, cast
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -19,14 +20,32 @@ from numpy.typing import ArrayLike, NDArray
 from . import basis
 from ._result import Result
 from ._result_schema import check_coordinates
-from ._validation import (as_faces, as_normals, as_points, check_choice, check_enough_points, check_int,
-                          check_nonnegative, check_real, check_rng, error)
+from ._validation import (
+    as_faces,
+    as_normals,
+    as_points,
+    check_choice,
+    check_enough_points,
+    check_int,
+    check_nonnegative,
+    check_real,
+    check_rng,
+    error,
+)
 from .cloud import Cloud, as_cloud
 from .linear import LINEAR_METHODS, fit_linear
 from .normals import estimate_normals
-from .objective import Measures, measures as compute_measures
-from .options import (DEFAULT_DELTA, DEFAULT_EPSILON, DEFAULT_METHOD, DEFAULT_RULE, RECOMMENDED, REFINE_METHODS,
-                      SearchOptions)
+from .objective import Measures
+from .objective import measures as compute_measures
+from .options import (
+    DEFAULT_DELTA,
+    DEFAULT_EPSILON,
+    DEFAULT_METHOD,
+    DEFAULT_RULE,
+    RECOMMENDED,
+    REFINE_METHODS,
+    SearchOptions,
+)
 from .polynomial import ImplicitPolynomial
 from .quality import Quality, looks_like_contour, quality
 from .refine import refine
@@ -80,10 +99,11 @@ class DegreeResult(Result):
 
     def to_dict(self) -> dict:
         """The entry of ``degrees`` in the JSON result (contract keys, plus nit/nfev/quality)."""
-        out = {"degree": self.degree, "dissimilarity": self.dissimilarity, "smoothness": self.smoothness,
-               "distance": self.distance, "seconds": self.seconds, "method": self.polynomial.method,
-               "coefficients": [float(c) for c in self.polynomial.coefficients], "nit": self.nit,
-               "nfev": self.nfev, "success": self.success, "message": self.message}
+        out: dict[str, Any] = {
+            "degree": self.degree, "dissimilarity": self.dissimilarity, "smoothness": self.smoothness,
+            "distance": self.distance, "seconds": self.seconds, "method": self.polynomial.method,
+            "coefficients": [float(c) for c in self.polynomial.coefficients], "nit": self.nit,
+            "nfev": self.nfev, "success": self.success, "message": self.message}
         if self.quality is not None:
             out["quality"] = self.quality.to_dict()
         if self.cleanup:
@@ -190,7 +210,7 @@ class _Fitter:
             return poly, (), 0, 0, True, "custom fit"
         if self.method in LINEAR_METHODS:
             return fit_linear(cloud, None, degree, self.method), (), 0, 0, True, "linear fit"
-        options = options or self.options
+        options = cast(SearchOptions, options or self.options)  # a refinement method: check_settings gave options
 
         def report(state):
             self.progress({"event": "iteration", "degree": degree, "stage": state.message, "nit": state.nit,
@@ -220,8 +240,9 @@ def _check_progress(progress):
     return progress
 
 
-def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *, method: str | FitFunction = DEFAULT_METHOD,
-                 options: SearchOptions | None = None, max_degree: int | None = None, min_degree: int = 2,
+def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
+                 method: str | FitFunction = DEFAULT_METHOD, options: SearchOptions | None = None,
+                 max_degree: int | None = None, min_degree: int = 2,
                  epsilon: float = DEFAULT_EPSILON, delta: float = DEFAULT_DELTA,
                  rule: str | DegreeRule = DEFAULT_RULE,
                  faces: ArrayLike | None = None, ordered_contour: bool | None = None, rng=None,
@@ -287,8 +308,13 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
     >>> result.selected_degree, result.success
     (2, True)
     """
-    given = as_cloud(points, normals, faces=faces) if isinstance(points, Cloud) else None  # refuses normals, faces
-    pts = given.points if given is not None else as_points(points)
+    given: Cloud | None
+    if isinstance(points, Cloud):
+        given = as_cloud(points, normals, faces=faces)  # refuses normals, faces
+        pts = given.points
+    else:
+        given = None
+        pts = as_points(points)
     check_coordinates(pts)  # the result must be readable: refuse up front what it could not record
     dim = pts.shape[1]
     method, options, rule, epsilon, delta, min_degree = check_settings(method, options, rule, epsilon, delta,
@@ -365,7 +391,8 @@ def _select(results, rule: DegreeRule, epsilon: float, reason: str, fixed: bool)
     return index, reason, rule.explain(results, index, reason, epsilon)
 
 
-def check_settings(method, options, rule, epsilon, delta, min_degree, max_degree=None):
+def check_settings(method, options, rule, epsilon, delta, min_degree,
+                   max_degree=None) -> tuple[Any, SearchOptions | None, DegreeRule, float, float, int]:
     """The data-independent arguments of :func:`fit_adaptive`, checked (the one place: batches
     check them once before sending shapes to workers). Returns them normalised (the rule as its
     :class:`~ipfit.rules.DegreeRule` object)."""

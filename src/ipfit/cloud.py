@@ -24,8 +24,8 @@ from __future__ import annotations
 import os
 import threading
 from collections.abc import Callable, Hashable
-from dataclasses import dataclass
-from typing import Any
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -96,6 +96,11 @@ class Cloud:
     source: os.PathLike | str | None = None
     n_file: int | None = None
     normals_source: str | None = None
+    if TYPE_CHECKING:
+        # The store (_start_store) is set with object.__setattr__, outside the dataclass fields;
+        # declared for the type checker only.
+        _derived: dict[tuple[str, Hashable], Any] = field(init=False, repr=False, compare=False)
+        _lock: threading.Lock = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         points = as_points(self.points)
@@ -216,7 +221,7 @@ class Cloud:
         extras = [f"normals from {self.normals_source}" if self.normals is not None else "no normals"]
         if self.faces is not None:
             extras.append(f"{len(self.faces):,} faces")
-        if self.n_file > len(self):
+        if cast(int, self.n_file) > len(self):  # __post_init__ replaced None with len(points)
             extras.append(f"{len(self):,} of {self.n_file:,} kept")
         return f"Cloud({self.name!r}: {len(self):,} {self.dim}D points, {', '.join(extras)})"
 

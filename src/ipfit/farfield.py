@@ -98,7 +98,7 @@ def far_field_samples(u: NDArray[np.float64] | Cloud, normals: NDArray[np.float6
     pad = margin * float((hi - lo).max())
     lo, hi = lo - pad, hi + pad
     step = float((hi - lo).max()) / ((per_axis or (40 if dim == 2 else 16)) - 1)
-    axes = [np.arange(a, b + 0.5 * step, step) for a, b in zip(lo, hi)]
+    axes = [np.arange(a, b + 0.5 * step, step) for a, b in zip(lo, hi, strict=True)]
     grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, dim)
     dist, nearest = cKDTree(u).query(grid, workers=-1)
     keep = dist > clearance * c
@@ -110,7 +110,7 @@ def far_field_samples(u: NDArray[np.float64] | Cloud, normals: NDArray[np.float6
 def _points_and_normals(u, normals, required_by: str) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     if isinstance(u, Cloud):
         cloud = as_cloud(u, normals, name="u", required_by=required_by)
-        return cloud.points, cloud.unit_normals
+        return cloud.points, cloud.oriented
     u = as_points(u, "u")
     return u, as_matching(normals, u)  # arrays: the normals as given (the fits pass unit normals)
 
@@ -157,8 +157,9 @@ def _spread(candidates: NDArray[np.float64], reach: NDArray[np.float64], count: 
     return np.sort(chosen)
 
 
-def term_samples(u: NDArray[np.float64] | Cloud, normals: NDArray[np.float64] | None = None, *, count: int | None = None,
-                 per_axis: int | None = None, **kwargs) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+def term_samples(u: NDArray[np.float64] | Cloud, normals: NDArray[np.float64] | None = None, *,
+                 count: int | None = None, per_axis: int | None = None,
+                 **kwargs) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """The far-field term's samples: ``count`` nodes of a fine grid, evenly spread away from the data.
 
     Candidates are the nodes of :func:`far_field_samples` (``per_axis`` along the longest side,
@@ -205,7 +206,10 @@ class FarFieldTerm:
 
     For sample s_i with signed distance t_i and signed Taubin distance τ_i = f/||∇f||:
 
-    .. math:: \text{term} = \frac{w}{M} \sum_i \min\left(2, \max\left(0, 1 - \frac{\operatorname{sign}(t_i)\,τ_i}{ρ |t_i|}\right)\right)
+    .. math::
+
+        \text{term} = \frac{w}{M} \sum_i
+        \min\left(2, \max\left(0, 1 - \frac{\operatorname{sign}(t_i)\,τ_i}{ρ |t_i|}\right)\right)
 
     It is 0 where f has the right sign and the zero set is not within ρ|t_i| of the sample,
     grows to 1 as the zero set reaches the sample, and up to 2 on the wrong side. It is
@@ -240,7 +244,7 @@ class FarFieldTerm:
 
     @classmethod
     def from_data(cls, u: NDArray | Cloud, normals: NDArray | None, degree: int, weight: float, *,
-                  ratio: float = DEFAULT_RATIO, **kwargs) -> "FarFieldTerm":
+                  ratio: float = DEFAULT_RATIO, **kwargs) -> FarFieldTerm:
         """Build the term from the data (samples from :func:`term_samples`, which a
         :class:`~ipfit.Cloud` keeps; keywords go there)."""
         samples, targets = term_samples(u, normals, **kwargs)
@@ -306,4 +310,5 @@ def fused_rows(terms, dim: int, degree: int, dtype) -> tuple[NDArray, NDArray, N
     if not far:
         return None
     parts = [t.rows(dtype) for t in far]
-    return tuple(np.ascontiguousarray(np.concatenate(column)) for column in zip(*parts))
+    m, k, w = (np.ascontiguousarray(np.concatenate(column)) for column in zip(*parts, strict=True))
+    return m, k, w

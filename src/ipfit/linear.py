@@ -17,19 +17,19 @@ cloud (the dozen start fits of a search) factor each block once.
 from __future__ import annotations
 
 import warnings
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from math import factorial
-from typing import Callable, Iterable, Iterator, Mapping
+from typing import cast
 
 import numpy as np
 import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 
 from . import basis
-from ._validation import (check_choice, check_degree, check_enough_points, check_nonnegative,
-                          check_positive, error)
-from .exceptions import ConditioningWarning
+from ._validation import check_choice, check_degree, check_enough_points, check_nonnegative, check_positive, error
 from .cloud import Cloud, as_cloud
+from .exceptions import ConditioningWarning
 from .farfield import far_field_samples
 from .polynomial import ImplicitPolynomial, Normalization
 
@@ -246,8 +246,9 @@ def _solve_taubin(problem: _Problem) -> tuple[NDArray, dict]:
 
 
 def _three_level_blocks(problem: _Problem, c: float) -> Iterator[NDArray]:
+    normals = cast(NDArray[np.float64], problem.normals)  # 3L requires normals (_prepare checked them)
     for sl in _point_chunks(problem, 3):
-        u, n = problem.u[sl], problem.normals[sl]
+        u, n = problem.u[sl], normals[sl]
         stacked = np.concatenate([u, u + c * n, u - c * n])
         targets = np.concatenate([np.zeros(len(u)), np.full(len(u), c), np.full(len(u), -c)])
         yield _augmented(problem.design(stacked), targets)
@@ -301,9 +302,10 @@ def _solve_ridge(problem: _Problem, c: float = DEFAULT_OFFSET, kappa: float = DE
 
 def _gradient_blocks(problem: _Problem) -> Iterator[NDArray]:
     """Rows [∂M/∂x_k | n_k]: the gradient-one rows before their weight √μ."""
+    normals = cast(NDArray[np.float64], problem.normals)  # gradient-one requires normals (_prepare checked them)
     for sl in _point_chunks(problem, problem.dim):
         m, dm = basis.monomials_and_gradients(problem.u[sl], problem.degree)
-        yield _augmented(dm.reshape(-1, m.shape[1]), problem.normals[sl].T.ravel())
+        yield _augmented(dm.reshape(-1, m.shape[1]), normals[sl].T.ravel())
 
 
 def _solve_gradient_one(problem: _Problem, mu: float = DEFAULT_MU, far_row_weight: float = 0.0,
@@ -469,7 +471,8 @@ def fit_3l(points: ArrayLike, normals: ArrayLike, degree: int, c: float = DEFAUL
     >>> from ipfit.datasets.synthetic import circle
     >>> shape = circle(80)
     >>> poly = fit_3l(shape.points, shape.normals, degree=2)
-    >>> bool(abs(poly([[1.0, 0.0]])[0]) < 1e-2)  # 3L is close, not exact: level sets ±c of x²+y²−1 are not at distance c
+    >>> # 3L is close, not exact: level sets ±c of x²+y²−1 are not at distance c
+    >>> bool(abs(poly([[1.0, 0.0]])[0]) < 1e-2)
     True
     """
     return _fit("3l", points, normals, degree, c=c, far_row_weight=far_row_weight)
@@ -509,7 +512,7 @@ def fit_gradient_one(points: ArrayLike, normals: ArrayLike, degree: int, mu: flo
     return _fit("gradient_one", points, normals, degree, mu=mu, far_row_weight=far_row_weight)
 
 
-def fit_linear(points: ArrayLike, normals: ArrayLike | None, degree: int, method: str = "3l", *,
+def fit_linear(points: ArrayLike | Cloud, normals: ArrayLike | None, degree: int, method: str = "3l", *,
                normalization: Normalization | None = None, **params: float) -> ImplicitPolynomial:
     """Dispatch to one of :data:`LINEAR_METHODS` by name (``'lstsq'``, ``'taubin'``, ``'3l'``,
     ``'ridge'``, ``'gradient_one'``, or ``'3l-far'``: 3L with far-field rows at the default

@@ -39,10 +39,11 @@ from __future__ import annotations
 import contextlib
 import os
 import threading
+from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import Protocol, Sequence, runtime_checkable
+from typing import TYPE_CHECKING, Protocol, cast, runtime_checkable
 
 import numpy as np
 import scipy.linalg
@@ -52,6 +53,9 @@ from . import basis
 from ._validation import as_normals, as_points, check_degree, check_nonnegative, error
 from .farfield import FarFieldTerm, fused_rows
 from .polynomial import ImplicitPolynomial
+
+if TYPE_CHECKING:
+    from .polynomial import Normalization
 
 __all__ = ["Measures", "measures", "Objective", "ObjectiveTerm", "TAUBIN_CAP", "DEFAULT_DELTA",
            "single_threaded_blas", "default_threads"]
@@ -158,7 +162,7 @@ class Measures:
         return {"dissimilarity": plain(self.dissimilarity), "smoothness": plain(self.smoothness),
                 "distance": plain(self.distance), "delta": float(self.delta)}
 
-    def __getitem__(self, index) -> "Measures":
+    def __getitem__(self, index) -> Measures:
         """The measures of population member(s) ``index``."""
         pick = (lambda v: v[index]) if np.ndim(self.distance) else (lambda v: v)
         out = Measures(pick(self.dissimilarity), pick(self.smoothness), pick(self.distance), self.delta)
@@ -274,13 +278,13 @@ class Objective:
         # The far rows of the polish's float64 pass (none: empty, so that the pass needs no branch).
         far64 = self._far if self.dtype == np.float64 else fused_rows(self.terms, self.dim, self.degree, np.float64)
         self._far64 = far64 or (np.empty((0, self.n_coefficients)), np.empty(0), np.empty(0))
-        self._member_rows = None
-        self._whitening = None
+        self._member_rows: NDArray[np.float64] | None = None
+        self._whitening: NDArray[np.float64] | None = None
 
     # -- construction from raw data ---------------------------------------------------------
     @classmethod
     def from_data(cls, points: ArrayLike, normals: ArrayLike, degree: int, delta: float = DEFAULT_DELTA,
-                  **kwargs) -> "Objective":
+                  **kwargs) -> Objective:
         """Normalise ``points`` with :meth:`Normalization.from_points` (as the linear fits do)
         and build the objective in those coordinates; ``.normalization`` records the map."""
         from .polynomial import Normalization
@@ -292,7 +296,7 @@ class Objective:
         obj.normalization = norm
         return obj
 
-    normalization = None  #: set by :meth:`from_data`
+    normalization: Normalization | None = None  #: set by :meth:`from_data`
 
     # -- population evaluation ----------------------------------------------------------------
     def _population(self, population: ArrayLike) -> NDArray:
@@ -361,13 +365,15 @@ class Objective:
         values = np.empty((rows, n_members), dtype=self.dtype)
         grads = np.empty((rows, self.dim * n_members), dtype=self.dtype)
         sums = np.zeros((3, n_members))
+        # far-field jobs exist only when there are far-field rows (_sums)
+        far = cast(tuple[NDArray, NDArray, NDArray], self._far)
         for is_far, lo, hi in jobs:
             n = hi - lo
-            m = self._far[0][lo:hi] if is_far else self._design(lo, hi, self.dtype)
+            m = far[0][lo:hi] if is_far else self._design(lo, hi, self.dtype)
             np.matmul(m, at, out=values[:n])
             np.matmul(m[:, : self.n_lower], bt, out=grads[:n])
             if is_far:
-                reduce_far_field(values[:n], grads[:n], self._far[1][lo:hi], self._far[2][lo:hi], _TINY, sums[2])
+                reduce_far_field(values[:n], grads[:n], far[1][lo:hi], far[2][lo:hi], _TINY, sums[2])
             else:
                 reduce_population(values[:n], grads[:n], self._normals[lo:hi], _TINY, TAUBIN_CAP, sums[0], sums[1])
         return sums
@@ -396,14 +402,15 @@ class Objective:
         a = self._population(population)
         if bound is None or self._far is None:
             sums = self._sums(a, far=True)
-            value = self._measures(sums).distance
+            # a population's measures: (P,) arrays
+            value = cast(NDArray[np.float64], self._measures(sums).distance)
             if self._far is not None:
                 value = value + sums[2]
             return self._plus_extra(a, value)
         bound = np.asarray(bound, dtype=np.float64)
         if bound.shape != (a.shape[0],):
             raise error("bound", f"a ({a.shape[0]},) array, one value per member", f"shape {bound.shape}")
-        value = self._plus_extra(a, self._measures(self._sums(a)).distance)
+        value = self._plus_extra(a, cast(NDArray[np.float64], self._measures(self._sums(a)).distance))
         contenders = np.flatnonzero(value <= bound)
         if contenders.size:
             value[contenders] += self._sums(a[contenders], data=False, far=True)[2]

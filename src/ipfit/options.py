@@ -19,16 +19,17 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, Mapping, NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
+from ._validation import check_choice, check_int, check_nonnegative, check_positive, check_probability, error
 from .exceptions import InvalidInputError
 from .farfield import DEFAULT_TERM_WEIGHT
 from .linear import LINEAR_METHODS, check_params
 from .objective import DEFAULT_DELTA
-from ._validation import check_choice, check_int, check_nonnegative, check_positive, check_probability, error
 
 __all__ = ["SearchOptions", "RECOMMENDED", "PAPER", "PAPER_METHOD", "PAPER_RULE", "DEFAULT_METHOD",
            "DEFAULT_RULE", "DEFAULT_EPSILON", "DEFAULT_DELTA", "DEFAULT_ITERATIONS", "DEFAULT_START_FITS",
@@ -53,8 +54,8 @@ DEFAULT_START_FITS = ("3l", "ridge", "gradient_one", "taubin", "lstsq", "3l(c=0.
                       "ridge(kappa=1e-6)", "ridge(kappa=1e-3)", "gradient_one(mu=0.1)", "gradient_one(mu=10)")
 
 #: Defaults of the method-specific settings (the paper's DE and PSO parameters, Section 5.2).
-METHOD_DEFAULTS: Mapping[str, float | int] = {"mutation": 0.7, "recombination": 0.9, "chi": 0.729, "c1": 2.05,
-                                              "c2": 2.05, "polish_iterations": "auto"}
+METHOD_DEFAULTS: Mapping[str, float | int | str] = {"mutation": 0.7, "recombination": 0.9, "chi": 0.729,
+                                                    "c1": 2.05, "c2": 2.05, "polish_iterations": "auto"}
 #: What "auto" means for the settings whose best value depends on the dimension (measured in
 #: ``benchmarks/bench_search_budget.py``). A contour's 1,000 spread points sample it about as
 #: densely as 3,000 do a surface and halve the search's time on the larger contours; contours
@@ -190,10 +191,10 @@ class SearchOptions:
     100
     >>> PAPER.search_space, PAPER.far_term_weight
     ('coefficients', 0.0)
-    >>> SearchOptions(chi=0.7).check_method("de")
+    >>> SearchOptions(chi=0.7).check_method("de")  # doctest: +ELLIPSIS
     Traceback (most recent call last):
     ...
-    ipfit.exceptions.InvalidInputError: chi: expected a setting used by method 'de' (chi is used by pso), got chi=0.7. Leave it unset or pick a method that uses it.
+    ipfit.exceptions.InvalidInputError: chi: expected a setting used by method 'de' (chi is used by pso), got chi=0.7...
     """
 
     population_size: int | None = None
@@ -210,8 +211,8 @@ class SearchOptions:
     far_term_weight: float = DEFAULT_TERM_WEIGHT
     dtype: str = "auto"
     n_solutions: int = 5
-    search_points: int | None | str = "auto"
-    stall_generations: int | None | str = "auto"
+    search_points: int | str | None = "auto"
+    stall_generations: int | str | None = "auto"
     stall_tolerance: float = 1e-4
     warm_start: bool = False
     cleanup_weights: tuple[float, ...] = (1.0, 10.0)
@@ -267,7 +268,7 @@ class SearchOptions:
             raise error("cleanup_weights", "a tuple of far-field term weights", repr(weights))
         set_("cleanup_weights", tuple(check_positive(w, "cleanup_weights") for w in weights))
 
-    def replace(self, **changes: Any) -> "SearchOptions":
+    def replace(self, **changes: Any) -> SearchOptions:
         """A copy with ``changes`` applied (and checked).
 
         >>> RECOMMENDED.replace(iterations=50).iterations

@@ -16,8 +16,9 @@ from __future__ import annotations
 import math
 import os
 import sys
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any, cast
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -268,8 +269,9 @@ def _coarser(zs: ZeroSet, max_faces: int) -> ZeroSet:
 
     matplotlib draws every face as a polygon; beyond some 10⁴ faces it only gets slower.
     """
-    if zs.dim == 3 and not zs.is_empty and len(zs.faces) > max_faces and zs.polynomial is not None:
-        resolution = max(8, int(max(zs.shape) * math.sqrt(max_faces / len(zs.faces))))
+    faces = cast(NDArray[np.int64], zs.faces)  # read only when a 3D zero set is not empty: it has faces then
+    if zs.dim == 3 and not zs.is_empty and len(faces) > max_faces and zs.polynomial is not None:
+        resolution = max(8, int(max(zs.shape) * math.sqrt(max_faces / len(faces))))
         return extract_zero_set(zs.polynomial, bounds=zs.bounds, resolution=resolution)
     return zs
 
@@ -309,7 +311,9 @@ def plot_surface(poly: ImplicitPolynomial | None, points: ArrayLike | None = Non
 
     ax.computed_zorder = False  # draw in zorder: the points go over the surface
     if not zs.is_empty:
-        faces, labels = zs.faces, zs.component_labels
+        # a 3D zero set that is not empty has its mesh
+        vertices, faces = cast(NDArray[np.float64], zs.vertices), cast(NDArray[np.int64], zs.faces)
+        labels = zs.component_labels
         if len(faces) > max_faces:  # cannot re-extract: thin out evenly
             keep = slice(None, None, math.ceil(len(faces) / max_faces))
             faces, labels = faces[keep], labels[keep]
@@ -318,10 +322,10 @@ def plot_surface(poly: ImplicitPolynomial | None, points: ArrayLike | None = Non
         # nothing), and the points over both.
         for part, rgb, alpha, zorder in ((~flagged, color, 1.0, 1), (flagged, spurious_color, SPURIOUS_ALPHA, 2)):
             if part.any():
-                colors = _shaded_colors(zs.vertices, faces[part], to_rgba(rgb)[:3])
+                colors = _shaded_colors(vertices, faces[part], to_rgba(rgb)[:3])
                 colors[:, 3] = alpha
                 # Without antialiasing, neighbouring faces leave no hairline seams between them.
-                ax.add_collection3d(Poly3DCollection(zs.vertices[faces[part]], facecolors=colors, edgecolors="none",
+                ax.add_collection3d(Poly3DCollection(vertices[faces[part]], facecolors=colors, edgecolors="none",
                                                      linewidths=0, antialiased=False, zorder=zorder))
     if show_points and pts is not None:
         surface = poly if poly is not None else zs.polynomial
@@ -395,7 +399,8 @@ def _panels(view: ResultView) -> list[tuple[str, str, Any]]:
             panels.append((f"degree {d.degree}{mark}" + (f"\n{method}" if method else ""), "fit", d.polynomial))
     else:  # one polynomial to show: title it with its measures
         entry = fitted[0].entry if fitted else {}
-        poly = fitted[0].polynomial if fitted else view.polynomial
+        # fitted: the degrees that have a polynomial
+        poly = cast(ImplicitPolynomial, fitted[0].polynomial) if fitted else view.polynomial
         method = _method_label(entry.get("method") or poly.method or view.polynomial.method)
         measures = {**(view.data.get("measures") or {}), **entry}
         stats = ", ".join(f"{name} {text}" for name in ("smoothness", "distance")
@@ -488,7 +493,7 @@ def plot_result(result, points: ArrayLike | None = None, path: str | os.PathLike
                 plot_surface(payload, shown, ax, zero_set=zs, spurious=flags, show_points=True, view=view, up=up,
                              max_faces=max_faces, axis_off=True)
         else:
-            g, s = zip(*payload)
+            g, s = zip(*payload, strict=True)  # payload: (degree, smoothness) pairs
             plot_smoothness(g, s, view_.selected_degree, ax)
         ax.set_title(letter + label, fontsize="medium")
     if title:

@@ -3,12 +3,12 @@
 For each query point q, starting points on the zero set come from exact ray intersections
 (:mod:`ipfit.rays`) along the line through q in the direction of ∇f(q) — where Newton's
 method on f along ∇f heads — and, as fallbacks when that line misses or ∇f(q) = 0, along
-the line to the data's centre, the coordinate axes and the diagonals. The nearest of them is then polished by Newton's method on the
-Lagrange conditions of the closest point, u − q + λ∇f(u) = 0 and f(u) = 0, with the exact
-Hessian (:mod:`ipfit.curvature`); the polished point is kept only if it lies on the zero
-set and is not farther than the starting point, so the answer is never worse than an exact
-point of the zero set. All work is done in normalised coordinates, where distances are of
-order one, and scaled back.
+the line to the data's centre, the coordinate axes and the diagonals. The nearest of them is
+then polished by Newton's method on the Lagrange conditions of the closest point,
+u − q + λ∇f(u) = 0 and f(u) = 0, with the exact Hessian (:mod:`ipfit.curvature`); the
+polished point is kept only if it lies on the zero set and is not farther than the starting
+point, so the answer is never worse than an exact point of the zero set. All work is done in
+normalised coordinates, where distances are of order one, and scaled back.
 """
 
 from __future__ import annotations
@@ -165,4 +165,4 @@ def distance_summary(poly, points: ArrayLike, max_points: int = 4000) -> dict[st
     true = project(poly, pts).distances
     taubin = poly.taubin_distance(pts)
     return {"projected_mean": float(np.mean(true)), "projected_max": float(np.max(true)),
-            "taubin_mean": float(np.mean(taubin)), "taubin_max": float(np.max(taubin)), "n_points": int(len(pts))}
+            "taubin_mean": float(np.mean(taubin)), "taubin_max": float(np.max(taubin)), "n_points": len(pts)}

@@ -39,14 +39,22 @@ are shorter than τ). The extracted zero set itself is accurate to about one gri
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass
-from typing import Any, Sequence
+from typing import Any, cast
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ._distance import (DEFAULT_MAX_SAMPLES, DEFAULT_TAU_FRACTION, Samples, Target, data_target, mesh_target,
-                        query_workers)
+from ._distance import (
+    DEFAULT_MAX_SAMPLES,
+    DEFAULT_TAU_FRACTION,
+    Samples,
+    Target,
+    data_target,
+    mesh_target,
+    query_workers,
+)
 from ._validation import check_int, check_positive, error
 from .cloud import Cloud, as_cloud
 from .polynomial import ImplicitPolynomial
@@ -241,7 +249,8 @@ def _measure(model, points, *, details: bool = False, **options):
         # The polynomial (its coefficients in its normalisation) and the settings name a measurement.
         key = (model.coefficients.tobytes(), model.normalization.center.tobytes(), model.normalization.scale,
                repr(sorted(options.items())))
-        found = cloud.derived("measurement", key, lambda: _measure_now(model, cloud, **options), keep=_MEASUREMENTS_KEPT)
+        found = cloud.derived("measurement", key, lambda: _measure_now(model, cloud, **options),
+                              keep=_MEASUREMENTS_KEPT)
     q, flags, samples, d_zero, tau = found
     return (None, flags, samples, d_zero, tau) if details else (q, flags)
 
@@ -270,7 +279,8 @@ def _measure_now(model, cloud: Cloud, *, ordered_contour, tau, tau_fraction, bou
     if tau is None:
         if not 0 < diagonal < np.inf:  # tau defaults to a fraction of the diagonal: none to take
             raise error("points", "points whose box has a diagonal > 0 and finite in float64",
-                        f"a diagonal of {diagonal:.3g}", "Pass the tolerance tau= (ipfit score --tau), or other points.")
+                        f"a diagonal of {diagonal:.3g}",
+                        "Pass the tolerance tau= (ipfit score --tau), or other points.")
         tau = check_positive(tau_fraction, "tau_fraction") * diagonal
     tau = check_positive(tau, "tau")
     # Samples only find candidate elements (distances are exact to those) and weigh the zero
@@ -298,7 +308,8 @@ def _measure_now(model, cloud: Cloud, *, ordered_contour, tau, tau_fraction, bou
         starts, ends, _ = zs.segments()
         target = Target(samples, "segments", (starts, ends), tau=tau)
     else:
-        target = mesh_target(zs.vertices, zs.faces, samples, tau)
+        # a 3D zero set that is not empty has its mesh
+        target = mesh_target(cast(NDArray[np.float64], zs.vertices), cast(NDArray[np.int64], zs.faces), samples, tau)
     d_data = target.distance(pts)
     d_zero = ref.distance(samples.points)
     recall = float(np.mean(d_data <= tau))

@@ -23,24 +23,25 @@ Design notes:
 from __future__ import annotations
 
 import time
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from types import MappingProxyType
-from typing import Any, Callable, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 import scipy.linalg
-from scipy.spatial import cKDTree
 from numpy.typing import ArrayLike, NDArray
+from scipy.spatial import cKDTree
 
 from . import basis
 from ._numeric import unit_rows
 from ._result import Result
-from ._validation import (as_points, check_degree, check_enough_points,
-                          check_nonnegative, check_rng, error)
+from ._validation import as_points, check_degree, check_enough_points, check_nonnegative, check_rng, error
 from .cloud import Cloud, as_cloud
 from .farfield import FarFieldTerm
 from .objective import Measures, Objective, single_threaded_blas
-from .optimize import DifferentialEvolution, OptimizeResult, ParticleSwarm, polish as lbfgs
+from .optimize import DifferentialEvolution, OptimizeResult, ParticleSwarm
+from .optimize import polish as lbfgs
 from .options import DEFAULT_DELTA, DEFAULT_METHOD, RECOMMENDED, REFINE_METHODS, MethodOptions, SearchOptions
 from .polynomial import ImplicitPolynomial, Normalization
 from .sampling import spread_subsample
@@ -275,7 +276,7 @@ def _search(settings: MethodOptions, obj_pop, starts: StartFits, r, r_inv, size,
     to_a = (lambda y: y @ r_inv.T) if whitened else (lambda y: y)
     d = r.shape[0]
     if len(starts):
-        n_started = max(1, int(round(settings.start_fraction * size)))
+        n_started = max(1, round(settings.start_fraction * size))
         start_y = unit_rows(starts.coefficients @ r.T if whitened else starts.coefficients)
         init = initial_population(start_y, size, min(n_started, size), gen)
     else:

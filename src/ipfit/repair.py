@@ -11,13 +11,15 @@ What counts as clean or done is the rule's; this module only repairs.
 from __future__ import annotations
 
 import dataclasses
-from typing import TYPE_CHECKING, Callable
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
+from numpy.typing import NDArray
 
 from .cloud import Cloud
 from .options import SearchOptions
-from .quality import stray_samples
+from .quality import Quality, stray_samples
 
 if TYPE_CHECKING:
     from .adaptive import DegreeResult
@@ -33,21 +35,26 @@ CLEANUP_POLISH_ITERATIONS = 200
 RECALL_KEPT = 0.02
 
 
+def _measured(result: DegreeResult) -> Quality:
+    """The quality of a degree being repaired: only measured degrees are (a geometric rule)."""
+    return cast(Quality, result.quality)
+
+
 def _better(trial: DegreeResult, best: DegreeResult, rule: DegreeRule, recall: float) -> bool:
     """Cleaner (for ``rule``) first, then a higher F-score; but a repair of a clean degree must not
     buy precision with the data: it keeps the recall (within RECALL_KEPT)."""
     trial_clean, best_clean = rule.is_clean(trial.quality), rule.is_clean(best.quality)
-    if best_clean and trial.quality.recall < recall - RECALL_KEPT:
+    if best_clean and _measured(trial).recall < recall - RECALL_KEPT:
         return False
-    return (trial_clean, trial.quality.f_score) > (best_clean, best.quality.f_score)
+    return (trial_clean, _measured(trial).f_score) > (best_clean, _measured(best).f_score)
 
 
 def _closer(trial: DegreeResult, best: DegreeResult, recall: float) -> bool:
     """A repair that failed only by leaving specks of spurious zero set (none open, the recall
     kept, a higher F-score): the next weight, with the specks held clear too, may finish it."""
-    q = trial.quality
+    q = _measured(trial)
     return (q.n_spurious > 0 and q.closed and q.recall >= recall - RECALL_KEPT
-            and q.f_score > best.quality.f_score)
+            and q.f_score > _measured(best).f_score)
 
 
 def _stray_distance(tau: float, cloud: Cloud, ordered_contour) -> float:
@@ -75,14 +82,16 @@ def repair(entry: DegreeResult, refit: Callable[..., DegreeResult], options: Sea
     describe the shape, with ``ordered_contour``), whose kept measurements the repair reuses.
     """
     polish = min(CLEANUP_POLISH_ITERATIONS, options.for_method("polish", dim=cloud.dim).polish_iterations)
-    stray = _stray_distance(entry.quality.tau, cloud, ordered_contour)
+    stray = _stray_distance(_measured(entry).tau, cloud, ordered_contour)
     target = "precision" if rule.is_clean(entry.quality) else "spurious components"
     best = current = entry
-    places, attempts, nfev = [], [], entry.nfev
+    places: list[NDArray] = []
+    attempts: list[dict[str, Any]] = []
+    nfev = entry.nfev
     for weight in options.cleanup_weights:
         # Spurious components first (their samples alone, as many as a bulge would otherwise take).
         found = stray_samples(current.polynomial, cloud, ordered_contour=bool(ordered_contour),
-                              distance=stray, spurious_only=current.quality.n_spurious > 0)
+                              distance=stray, spurious_only=_measured(current).n_spurious > 0)
         if len(found):
             places.append(found)
         if not places:
@@ -91,11 +100,11 @@ def repair(entry: DegreeResult, refit: Callable[..., DegreeResult], options: Sea
                       current.x, np.concatenate(places))
         nfev += trial.nfev
         attempts.append({"target": target, "far_term_weight": weight, "clean": rule.is_clean(trial.quality),
-                         "f_score": trial.quality.f_score, "precision": trial.quality.precision,
-                         "n_spurious": trial.quality.n_spurious, "closed": bool(trial.quality.closed),
+                         "f_score": _measured(trial).f_score, "precision": _measured(trial).precision,
+                         "n_spurious": _measured(trial).n_spurious, "closed": bool(_measured(trial).closed),
                          "seconds": trial.seconds})
-        if not _better(trial, best, rule, entry.quality.recall):
-            if not _closer(trial, best, entry.quality.recall):
+        if not _better(trial, best, rule, _measured(entry).recall):
+            if not _closer(trial, best, _measured(entry).recall):
                 break  # a weight that did not help: a stronger one pulls the zero set about even more
             current = trial  # on the data but with new specks: the next round holds them clear too
             continue

@@ -27,16 +27,28 @@ from __future__ import annotations
 
 import json
 import os
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ._atomic import write_text_atomic
-from ._result_schema import (FORMAT_NAME, FORMAT_VERSION, MAX_COORDINATE, MAX_DEGREE, MAX_DEPTH, SCHEMA, Key,
-                             parse_result_text, read_result_json, schema_markdown, validate_result)
+from ._result_schema import (
+    FORMAT_NAME,
+    FORMAT_VERSION,
+    MAX_COORDINATE,
+    MAX_DEGREE,
+    MAX_DEPTH,
+    SCHEMA,
+    Key,
+    parse_result_text,
+    read_result_json,
+    schema_markdown,
+    validate_result,
+)
 from ._validation import error
 from .exceptions import InvalidInputError, ReadError
 from .polynomial import ImplicitPolynomial, Normalization, to_jsonable

@@ -8,7 +8,7 @@ first, and the population is built around them.
 from __future__ import annotations
 
 import warnings
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -61,7 +61,8 @@ class StartFits:
         return len(values)
 
     def distance_by_label(self) -> dict[str, float]:
-        return dict(zip(self.labels, map(float, self.distances)))
+        # not strict: before rank() there are labels but no distances (an empty dict)
+        return dict(zip(self.labels, map(float, self.distances), strict=False))
 
 
 def _fitted_cloud(cloud: Cloud, max_points: int) -> Cloud:

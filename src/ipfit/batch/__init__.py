@@ -53,6 +53,7 @@ import time
 import uuid
 from collections.abc import Callable, Iterable
 from pathlib import Path
+from typing import cast
 
 from .. import _atomic
 from .._result_schema import FORMAT_NAME, validate_result
@@ -166,7 +167,8 @@ class _Outputs:
         data = _json_or_none(path) if path.is_file() else None
         self._check(path, path.name in self.own or (isinstance(data, dict) and data.get("format") == FORMAT_NAME))
         try:
-            data = validate_result(data, str(path))  # returns data itself, now known to be a dict
+            # returns data itself (it raises on None), now known to be a JSON object: a dict
+            data = cast(dict, validate_result(data, str(path)))
         except (InvalidInputError, RecursionError, ValueError, TypeError, KeyError):
             return None
         recorded, batch = data.get("input") or {}, data.get("batch") or {}

@@ -15,8 +15,15 @@ Every failure to read is a :class:`~ipfit.exceptions.ReadError` whose one-line m
 with the file's path.
 """
 
-from .mesh import (Merged, face_normals, fill_missing_normals, merge_duplicates, outward_vertices,
-                   vertex_normals_from_faces, winding_number)
+from .mesh import (
+    Merged,
+    face_normals,
+    fill_missing_normals,
+    merge_duplicates,
+    outward_vertices,
+    vertex_normals_from_faces,
+    winding_number,
+)
 from .readers import FORMATS, READ_FORMATS, Format, Mesh, PointCloud, read_mesh, read_points
 from .silhouettes import CONTOUR_SPAN, IMAGE_SUFFIXES, trace_silhouette
 from .writers import WRITE_FORMATS, write_points
