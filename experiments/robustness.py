@@ -323,7 +323,8 @@ def api_calls(tally: Tally, work: Path) -> None:
         "fit_3l(pts, nrm, -2)": lambda: ipfit.fit_3l(pts, nrm, -2),
         "fit_3l(pts, nrm[:5], 2)": lambda: ipfit.fit_3l(pts, nrm[:5], 2),
         "fit_3l(pts[:3], nrm[:3], 8)": lambda: ipfit.fit_3l(pts[:3], nrm[:3], 8),
-        "fit_adaptive(pts, nrm, dtype='x')": lambda: ipfit.fit_adaptive(pts, nrm, method="3l", dtype="x"),
+        "fit_adaptive(pts, nrm, options=RECOMMENDED.replace(dtype='x'))":
+            lambda: ipfit.fit_adaptive(pts, nrm, options=ipfit.RECOMMENDED.replace(dtype="x")),
         "fit_adaptive(pts, nrm, progress=5)": lambda: ipfit.fit_adaptive(pts, nrm, method="3l", progress=5),
         "fit_adaptive(pts, nrm, method='x')": lambda: ipfit.fit_adaptive(pts, nrm, method="x"),
         "fit_adaptive(pts, nrm, rng=-1)": lambda: ipfit.fit_adaptive(pts, nrm, method="3l", rng=-1),
