@@ -37,6 +37,7 @@ protocol); registering it in :data:`RULES` makes its name accepted too.
 
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
 from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, TypeGuard
 
@@ -249,7 +250,7 @@ def _measured(entry: DegreeResult) -> Quality:
 
 
 # -- the rules as objects --------------------------------------------------------------------------
-class DegreeRule:
+class DegreeRule(ABC):
     """A degree rule: what :func:`ipfit.fit_adaptive` asks about the degrees it fits.
 
     The loop fits degree after degree; after each one it asks :meth:`stop`, and at the end
@@ -301,16 +302,16 @@ class DegreeRule:
         start); ``best_f`` is the best clean F-score of the degrees before it. Default: clean."""
         return self.is_clean(entry.quality)
 
+    @abstractmethod
     def stop(self, results: Sequence[DegreeResult], epsilon: float) -> str | None:
         """Whether the loop stops after the last of ``results``: why in one word (it becomes
         the result's ``reason``), or None to fit the next degree."""
-        raise NotImplementedError(f"{type(self).__name__}.stop")
 
+    @abstractmethod
     def select(self, results: Sequence[DegreeResult], epsilon: float, reason: str) -> tuple[int, str]:
         """``(index, reason)``: the index into ``results`` of the selected degree, and the
         result's reason. ``reason`` is how the loop ended: what :meth:`stop` returned,
         ``'max_degree'`` or ``'interrupted'`` (Ctrl-C: ``results`` are the degrees finished)."""
-        raise NotImplementedError(f"{type(self).__name__}.select")
 
     def explain(self, results: Sequence[DegreeResult], index: int, reason: str, epsilon: float) -> str:
         """The result's message: which degree was selected and why, in words."""
