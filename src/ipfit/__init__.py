@@ -7,56 +7,47 @@ adaptive degree selection.
 
 from __future__ import annotations
 
-import sys
-import types
-
 from .exceptions import ConditioningWarning, InvalidInputError, IpfitError, IpfitWarning, ReadError
 
 # Loaded on first use (PEP 562): `ipfit` itself imports in milliseconds, so the command line
 # owns SIGINT before numpy/scipy load and a Ctrl-C at start-up never prints a traceback.
+# Name -> the module that defines it; None: the name is a module or subpackage of ipfit.
 _LAZY = {
     "basis": None, "optimize": None,
-    "LINEAR_METHODS": "linear", "fit_3l": "linear", "fit_gradient_one": "linear", "fit_linear": "linear",
-    "fit_lstsq": "linear", "fit_ridge": "linear", "fit_taubin": "linear",
-    "AdaptiveResult": "adaptive", "DegreeResult": "adaptive", "fit_adaptive": "adaptive", "select_degree": "adaptive",
-    "DegreeRule": "rules",
-    "save_zero_set": "export",
-    "fit_many": "batch", "BatchResult": "batch", "fit_chunked": "chunked",
-    "dataset_names": "datasets", "list_datasets": "datasets", "load_dataset": "datasets", "load": "datasets",
     "Cloud": "cloud",
-    "FarFieldTerm": "farfield", "far_field_samples": "farfield",
+    "ImplicitPolynomial": "polynomial", "Normalization": "polynomial",
+    "outward_vertices": "geometry.mesh", "winding_number": "geometry.mesh",
+    "LINEAR_METHODS": "fitting.linear", "fit_3l": "fitting.linear", "fit_gradient_one": "fitting.linear",
+    "fit_linear": "fitting.linear", "fit_lstsq": "fitting.linear", "fit_ridge": "fitting.linear",
+    "fit_taubin": "fitting.linear",
+    "fit_chunked": "fitting.chunked",
+    "Measures": "fitting.objective", "Objective": "fitting.objective", "measures": "fitting.objective",
+    "FarFieldTerm": "fitting.farfield", "far_field_samples": "fitting.farfield",
+    "SearchOptions": "fitting.options", "RECOMMENDED": "fitting.options", "PAPER": "fitting.options",
+    "PAPER_METHOD": "fitting.options", "PAPER_RULE": "fitting.options",
+    "REFINE_METHODS": "fitting.refine", "RefineResult": "fitting.refine", "refine": "fitting.refine",
+    "AdaptiveResult": "degree.adaptive", "DegreeResult": "degree.adaptive", "fit_adaptive": "degree.adaptive",
+    "select_degree": "degree.adaptive",
+    "DegreeRule": "degree.rules",
+    "ZeroSet": "zeroset.extract", "extract_zero_set": "zeroset.extract", "grid_values": "zeroset.extract",
+    "Quality": "zeroset.quality", "quality": "zeroset.quality",
+    "Trim": "zeroset.trim", "trim_zero_set": "zeroset.trim",
+    "save_zero_set": "zeroset.export",
+    "to_source": "analysis.codegen", "RayHits": "analysis.rays", "intersect_rays": "analysis.rays",
+    "render": "analysis.rays", "Projection": "analysis.projection", "project": "analysis.projection",
+    "Curvature": "analysis.curvature", "hessian": "analysis.curvature",
+    "descriptors": "analysis.invariants", "similarity": "analysis.invariants",
+    "plot_curve": "viz.plotting", "plot_result": "viz.plotting", "plot_smoothness": "viz.plotting",
+    "plot_surface": "viz.plotting",
     "read_mesh": "io", "read_points": "io", "write_points": "io",
     "contour_normals": "normals", "estimate_normals": "normals", "normal_agreement": "normals",
     "orient_normals": "normals",
-    "Measures": "objective", "Objective": "objective", "measures": "objective",
-    "plot_curve": "plotting", "plot_result": "plotting", "plot_smoothness": "plotting", "plot_surface": "plotting",
-    "ImplicitPolynomial": "polynomial", "Normalization": "polynomial",
-    "Quality": "quality", "quality": "quality",
-    "REFINE_METHODS": "refine", "RefineResult": "refine", "refine": "refine",
-    "SearchOptions": "options", "RECOMMENDED": "options", "PAPER": "options", "PAPER_METHOD": "options",
-    "PAPER_RULE": "options",
-    "outward_vertices": "solid", "winding_number": "solid",
-    "ZeroSet": "zeroset", "extract_zero_set": "zeroset", "grid_values": "zeroset",
-    "Trim": "trim", "trim_zero_set": "trim",
-    "to_source": "codegen", "RayHits": "rays", "intersect_rays": "rays", "render": "rays",
-    "Projection": "projection", "project": "projection", "Curvature": "curvature", "hessian": "curvature",
-    "descriptors": "invariants", "similarity": "invariants",
-    # ipfit.curvature and ipfit.invariants stay the modules: their same-named functions are
-    # ipfit.curvature.curvature (or poly.curvature) and ipfit.invariants.invariants.
-    "codegen": None, "curvature": None, "invariants": None, "projection": None, "rays": None, "recognition": None,
+    "dataset_names": "datasets", "list_datasets": "datasets", "load_dataset": "datasets", "load": "datasets",
+    "fit_many": "batch", "BatchResult": "batch",
+    # the rooms of the package, reachable as attributes (ipfit.analysis.curvature, ...)
+    "analysis": None, "batch": None, "datasets": None, "degree": None, "fitting": None, "geometry": None,
+    "io": None, "normals": None, "reproduce": None, "viz": None, "zeroset": None,
 }
-
-
-class _Package(types.ModuleType):
-    def __setattr__(self, name: str, value) -> None:
-        # importing the submodule ipfit.quality (or .refine) must not hide the function of that
-        # name, exactly as the eager `from .quality import quality` used to rebind it
-        if isinstance(value, types.ModuleType) and _LAZY.get(name) == name:
-            return
-        super().__setattr__(name, value)
-
-
-sys.modules[__name__].__class__ = _Package
 
 
 def __getattr__(name: str):
@@ -150,10 +141,5 @@ __all__ = [
     "hessian",
     "descriptors",
     "similarity",
-    "codegen",
-    "rays",
-    "projection",
-    "curvature",
-    "invariants",
-    "recognition",
+    "analysis",
 ]

@@ -1,7 +1,7 @@
-"""The result JSON's schema and its validator (the public face is :mod:`ipfit.results`).
+"""The result JSON's schema and its validator (the public face is :mod:`ipfit.degree.results`).
 
 This module sits below :mod:`ipfit.polynomial` so that ``ImplicitPolynomial.from_dict``
-can validate a whole file; :mod:`ipfit.results` adds the reading of its polynomials.
+can validate a whole file; :mod:`ipfit.degree.results` adds the reading of its polynomials.
 
 The schema is one table, :data:`SCHEMA`: every documented key with its type, whether it
 is required, and its meaning. ``docs/result-format.md`` is generated from it
@@ -25,7 +25,7 @@ from typing import Any, NamedTuple, TypeVar
 import numpy as np
 
 from . import basis
-from ._validation import error
+from ._utils.validation import error
 from .exceptions import InvalidInputError, ReadError
 
 __all__ = ["FORMAT_NAME", "FORMAT_VERSION", "Key", "SCHEMA", "MAX_DEGREE", "MAX_COORDINATE", "MAX_DEPTH",
@@ -348,7 +348,7 @@ def check_coordinates(points: np.ndarray, name: str = "points") -> None:
     ``fit`` calls it before fitting and the result commands on their data, so both fail up
     front with a message about the data, not about a result written afterwards.
     """
-    from ._validation import error
+    from ._utils.validation import error
 
     largest = float(np.abs(points).max(initial=0.0))
     if largest > MAX_COORDINATE:
@@ -443,7 +443,7 @@ def validate_result(data: _Data, source: str = "result") -> _Data:
 
 def read_result_json(path: str | os.PathLike) -> dict:
     """The JSON object of a result file (not yet validated), or a :class:`~ipfit.ReadError`."""
-    from . import _atomic
+    from ._utils import atomic as _atomic
 
     path = Path(path)
     kind = _atomic.special_kind(path)

@@ -169,7 +169,7 @@ def gradient_coefficients(at: NDArray, dim: int, degree: int) -> NDArray:
     partial derivatives of all members in one product with the degree-(g−1) design matrix L.
     Keeps the dtype of ``at``.
     """
-    from ._objective_kernels import gather_gradients  # compiled: called once or twice per generation
+    from ._basis_kernels import gather_gradients  # compiled: called once or twice per generation
 
     source, factor = derivative_gather(dim, degree)
     out = np.empty((source.shape[1], dim * at.shape[1]), dtype=at.dtype)

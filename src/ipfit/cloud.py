@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING, Any, cast
 import numpy as np
 from numpy.typing import NDArray
 
-from ._validation import as_faces, as_matching, as_normals, as_points, check_int, error
+from ._utils.validation import as_faces, as_matching, as_normals, as_points, check_int, error
 
 __all__ = ["Cloud", "as_cloud"]
 
@@ -230,8 +230,8 @@ def as_cloud(points, normals=None, *, faces=None, name: str = "points", dims=(2,
              required_by: str | None = None) -> Cloud:
     """``points`` (and ``normals``, ``faces``) as a :class:`Cloud`: a given cloud as it is (its
     own normals and faces, and its store of derived data), arrays checked once (as
-    :func:`~ipfit._validation.as_points`, :func:`~ipfit._validation.as_normals` with
-    ``required_by``, :func:`~ipfit._validation.as_faces`) into a transient cloud.
+    :func:`~ipfit._utils.validation.as_points`, :func:`~ipfit._utils.validation.as_normals` with
+    ``required_by``, :func:`~ipfit._utils.validation.as_faces`) into a transient cloud.
 
     The public functions that take points call this once at their entry and pass the cloud
     down; below it nothing is checked again.

@@ -42,7 +42,7 @@ try:
 except ImportError:  # pragma: no cover - Windows: no advisory locks, writes are still atomic
     fcntl = None  # type: ignore[assignment]  # an optional module: mypy has no type for "the module or None"
 
-from .exceptions import InvalidInputError, IpfitError
+from ..exceptions import InvalidInputError, IpfitError
 
 __all__ = ["atomic_path", "write_text_atomic", "write_bytes_atomic", "reserve", "publish", "publish_set",
            "discard_temporaries", "written_paths", "remove_temporary", "aimed_at", "reaimed", "settle",
@@ -94,7 +94,7 @@ def refuse_special(target: str | os.PathLike, name: str | None = None) -> None:
     socket: renaming a file onto it would replace the system's ``/dev/null``, say."""
     kind = special_kind(target)
     if kind is not None:
-        from ._validation import error
+        from .validation import error
 
         got = f"{target}, a {kind}" if name else f"a {kind}"
         raise error(name or str(target), "a regular file or a new file name", got,

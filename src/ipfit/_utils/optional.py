@@ -11,7 +11,7 @@ from __future__ import annotations
 import importlib
 from types import ModuleType
 
-from .exceptions import IpfitError
+from ..exceptions import IpfitError
 
 __all__ = ["EXTRAS", "MissingDependencyError", "require", "missing", "install_line"]
 
@@ -51,7 +51,7 @@ def require(module: str, what: str) -> ModuleType:
     >>> require("no_such_package_xyz", "the example")
     Traceback (most recent call last):
     ...
-    ipfit._optional.MissingDependencyError: the example needs the optional package 'no_such_package_xyz', \
+    ipfit._utils.optional.MissingDependencyError: the example needs the optional package 'no_such_package_xyz', \
 which is not installed. Install it with: pip install no_such_package_xyz
     """
     try:

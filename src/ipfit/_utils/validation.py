@@ -14,7 +14,7 @@ from typing import Any, overload
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .exceptions import InvalidInputError
+from ..exceptions import InvalidInputError
 
 __all__ = [
     "error",
@@ -287,7 +287,7 @@ def check_rng(rng: Any) -> np.random.Generator:
 
 def check_enough_points(n_points: int, dim: int, degree: int, name: str = "points") -> None:
     """Refuse a degree above ipfit's limit, or whose polynomial has more coefficients than there are points."""
-    from .basis import MAX_DEGREE, n_coefficients
+    from ..basis import MAX_DEGREE, n_coefficients
 
     if degree > MAX_DEGREE[dim]:
         raise error("degree", f"at most {MAX_DEGREE[dim]} in {dim}D (ipfit's limit)", str(degree),

@@ -33,8 +33,8 @@ from collections.abc import Callable
 
 import numpy as np
 
-from . import basis
-from ._validation import check_choice
+from .. import basis
+from .._utils.validation import check_choice
 
 __all__ = ["LANGUAGES", "to_source", "horner"]
 
@@ -167,7 +167,7 @@ def _glsl(poly) -> str:
     body = horner(_terms(poly.exponents, poly.coefficients), _NORMALISED[:dim], _glsl_number)
     comps = ", ".join(f"p.{a}" for a in "xyz"[:dim])
     lines = _header(poly, "//") + [
-        "// Single precision (see ipfit.codegen). ipfit_sdf is f / |grad f|, the first-order distance",
+        "// Single precision (see ipfit.analysis.codegen). ipfit_sdf is f / |grad f|, the first-order distance",
         "// to the zero set: exact on the surface, an estimate away from it, so ray-march it with",
         "// steps of a fraction of its value (e.g. 0.5 * ipfit_sdf) and stop when it is ~ 1e-4.", "",
         f"float ipfit_f({params})", "{", *setup, f"    return {body};", "}", "",

@@ -19,9 +19,9 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from . import basis
-from ._numeric import unit_rows_mask
-from ._validation import as_points
+from .. import basis
+from .._utils.numeric import unit_rows_mask
+from .._utils.validation import as_points
 
 __all__ = ["Curvature", "curvature", "hessian", "derivatives_normalized"]
 
@@ -97,7 +97,7 @@ def curvature(poly, points: ArrayLike) -> Curvature:
     ----------
     poly : ImplicitPolynomial
     points : (N, dim) array in user coordinates (points on the zero set, usually, e.g. from
-        :func:`ipfit.projection.project`).
+        :func:`ipfit.analysis.projection.project`).
 
     Returns
     -------

@@ -31,9 +31,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.special import eval_chebyt, eval_legendre
 
-from . import basis
-from ._validation import check_positive, error
-from .polynomial import ImplicitPolynomial, Normalization
+from .. import basis
+from .._utils.validation import check_positive, error
+from ..polynomial import ImplicitPolynomial, Normalization
 
 __all__ = ["compose_linear", "similarity", "invariants", "descriptors", "invariant_center"]
 
@@ -120,7 +120,7 @@ def invariant_center(poly: ImplicitPolynomial) -> NDArray[np.float64]:
     """Centre x₀ of step 1 of the module notes, in user coordinates (moves with the shape).
 
     >>> from ipfit.datasets.synthetic import torus
-    >>> from ipfit.invariants import similarity
+    >>> from ipfit.analysis.invariants import similarity
     >>> invariant_center(similarity(torus().polynomial, translation=[1.0, 2.0, 3.0])).round(9).tolist()
     [1.0, 2.0, 3.0]
     """
@@ -173,7 +173,7 @@ def invariants(poly: ImplicitPolynomial) -> NDArray[np.float64]:
     l = m, m−2, …; the length depends only on the dimension and degree.
 
     >>> from ipfit.datasets.synthetic import ellipse
-    >>> from ipfit.invariants import similarity
+    >>> from ipfit.analysis.invariants import similarity
     >>> a = invariants(ellipse(a=2.0, b=1.0).polynomial)
     >>> b = invariants(similarity(ellipse(a=2.0, b=1.0).polynomial, [[0.6, -0.8], [0.8, 0.6]], [5.0, 1.0], 3.0))
     >>> bool(np.allclose(a, b, rtol=1e-9, atol=1e-12)), a.shape

@@ -1,11 +1,11 @@
 """Closest points on the zero set, and the true geometric distance to it.
 
 For each query point q, starting points on the zero set come from exact ray intersections
-(:mod:`ipfit.rays`) along the line through q in the direction of ∇f(q) — where Newton's
+(:mod:`ipfit.analysis.rays`) along the line through q in the direction of ∇f(q) — where Newton's
 method on f along ∇f heads — and, as fallbacks when that line misses or ∇f(q) = 0, along
 the line to the data's centre, the coordinate axes and the diagonals. The nearest of them is
 then polished by Newton's method on the Lagrange conditions of the closest point,
-u − q + λ∇f(u) = 0 and f(u) = 0, with the exact Hessian (:mod:`ipfit.curvature`); the
+u − q + λ∇f(u) = 0 and f(u) = 0, with the exact Hessian (:mod:`ipfit.analysis.curvature`); the
 polished point is kept only if it lies on the zero set and is not farther than the starting
 point, so the answer is never worse than an exact point of the zero set. All work is done in
 normalised coordinates, where distances are of order one, and scaled back.
@@ -19,9 +19,9 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from . import basis
-from ._numeric import unit_rows_mask
-from ._validation import as_points
+from .. import basis
+from .._utils.numeric import unit_rows_mask
+from .._utils.validation import as_points
 from .curvature import derivatives_normalized
 from .rays import intersect_rays
 

@@ -26,10 +26,10 @@ from typing import NamedTuple, cast
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from . import basis
-from ._numeric import unit_rows_mask
-from ._result_schema import MAX_COORDINATE
-from ._validation import as_points, check_int, check_real, error
+from .. import basis
+from .._result_schema import MAX_COORDINATE
+from .._utils.numeric import unit_rows_mask
+from .._utils.validation import as_points, check_int, check_real, error
 
 __all__ = ["RayHits", "intersect_rays", "render", "camera_rays", "first_hits"]
 
@@ -349,7 +349,7 @@ def render(poly, bounds: ArrayLike, path: str | os.PathLike | None = None, *, si
     if path is not None:
         from PIL import Image
 
-        from ._atomic import atomic_path
+        from .._utils.atomic import atomic_path
 
         with atomic_path(path) as tmp:
             Image.fromarray(out).save(tmp, format="PNG")

@@ -12,8 +12,8 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ._numeric import unit_rows
-from ._validation import check_int, check_nonnegative, check_rng, error
+from .._utils.numeric import unit_rows
+from .._utils.validation import check_int, check_nonnegative, check_rng, error
 
 __all__ = ["CLASSES", "Contour", "demo_contour", "demo_collection", "retrieval_precision"]
 

@@ -24,7 +24,7 @@ listed there (nor an ipfit result, for ``NAME.json``), or an input.
 
 Resume: each result is written to ``OUTPUT/NAME.json`` with
 ``"batch": {"settings_hash": ..., "name": ..., "seed": ...}``; a shape whose stored result
-is valid (:func:`ipfit.results.validate_result`), records the same file (or source) and
+is valid (:func:`ipfit.degree.results.validate_result`), records the same file (or source) and
 name, and has the current settings' hash is skipped (status ``skipped``, its row read
 back); a broken one is fitted again and replaced.
 
@@ -55,11 +55,11 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import cast
 
-from .. import _atomic
 from .._result_schema import FORMAT_NAME, validate_result
-from .._validation import check_int, error
+from .._utils import atomic as _atomic
+from .._utils.validation import check_int, error
 from ..exceptions import InvalidInputError
-from ..options import DEFAULT_DELTA, DEFAULT_EPSILON, DEFAULT_METHOD, DEFAULT_RULE, SearchOptions
+from ..fitting.options import DEFAULT_DELTA, DEFAULT_EPSILON, DEFAULT_METHOD, DEFAULT_RULE, SearchOptions
 from ._cluster import (
     CONNECT_TIMEOUT,
     THREAD_ENV,
@@ -296,19 +296,19 @@ def fit_many(inputs, *, client=None, workers: int | None = None, scheduler: str 
 def _rule_name(rule):
     """A batch records its rule by name (in every result and in the hash that resumes it), and its
     workers look the name up: a registered rule object is its name; a name is kept as given."""
-    from ..rules import RULES, DegreeRule
+    from ..degree.rules import RULES, DegreeRule
 
     if not isinstance(rule, DegreeRule):
         return rule
     if RULES.get(rule.name) is not rule:
-        raise error("rule", "a rule's name or a rule of ipfit.rules.RULES", repr(rule),
-                    "A batch records its rule by name: register the rule in ipfit.rules.RULES.")
+        raise error("rule", "a rule's name or a rule of ipfit.degree.rules.RULES", repr(rule),
+                    "A batch records its rule by name: register the rule in ipfit.degree.rules.RULES.")
     return rule.name
 
 
 def _check_settings(settings: FitSettings) -> None:
     """Bad settings fail once, here, not once per shape on the workers."""
-    from ..adaptive import check_settings
+    from ..degree.adaptive import check_settings
 
     check_settings(settings.method, settings.options, settings.rule, settings.epsilon, settings.delta,
                    settings.min_degree, settings.max_degree)
@@ -335,7 +335,7 @@ def _run(active, todo, settings, folder, rows, results, progress, total, start) 
                 out = {"row": _row(task, status="failed", error=reason), "result": None}
             row, payload = out["row"], out["result"]
             if payload is not None and folder is not None:
-                from ..results import write_result
+                from ..degree.results import write_result
 
                 write_result(folder / f"{task.name}.json", payload)
             rows[task.name] = row

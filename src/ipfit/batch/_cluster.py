@@ -19,8 +19,8 @@ from collections.abc import Iterator
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
-from .._optional import require
-from .._validation import check_int
+from .._utils.optional import require
+from .._utils.validation import check_int
 from ..exceptions import InvalidInputError
 from ._shapes import _one_line
 

@@ -16,9 +16,9 @@ from typing import Any
 
 import numpy as np
 
-from .._validation import check_int, error
+from .._utils.validation import check_int, error
 from ..exceptions import InvalidInputError
-from ..options import DEFAULT_DELTA, DEFAULT_EPSILON, DEFAULT_METHOD, DEFAULT_RULE, SearchOptions
+from ..fitting.options import DEFAULT_DELTA, DEFAULT_EPSILON, DEFAULT_METHOD, DEFAULT_RULE, SearchOptions
 
 #: The summary table's columns, in order.
 COLUMNS = ("name", "input", "points", "dim", "selected_degree", "dissimilarity", "smoothness", "distance", "f_score",
@@ -69,7 +69,7 @@ class FitSettings:
         return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
 
     def fit(self, points, normals, name: str, faces=None):
-        from ..adaptive import fit_adaptive
+        from ..degree.adaptive import fit_adaptive
 
         return fit_adaptive(points, normals, method=self.method, options=self.options, min_degree=self.min_degree,
                             max_degree=self.max_degree, epsilon=self.epsilon, delta=self.delta, rule=self.rule,

@@ -106,7 +106,7 @@ def _memory_line(command: str, args) -> str:
 
 
 def _interrupted_line(command: str, signum: int, before: int) -> str:
-    from .. import _atomic
+    from .._utils import atomic as _atomic
 
     written = _atomic.written_paths()[before:]
     what = ("wrote " + ", ".join(map(str, written))) if written else "nothing was written"
@@ -135,7 +135,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 def _main(argv: Sequence[str] | None) -> int:
     import signal
 
-    from .. import _atomic
+    from .._utils import atomic as _atomic
     from ._common import handle_signals, received_signal
 
     args_list = sys.argv[1:] if argv is None else list(argv)
@@ -180,7 +180,7 @@ def _main(argv: Sequence[str] | None) -> int:
             print(f"ipfit {label}: error: {_os_error_line(exc)}", file=sys.stderr)
             return 2
         except ModuleNotFoundError as exc:
-            from .._optional import missing
+            from .._utils.optional import missing
 
             error = missing(exc, f"ipfit {label}")
             if error is None:

@@ -18,7 +18,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from .. import _atomic
+from .._utils import atomic as _atomic
 from ..exceptions import InvalidInputError, IpfitError
 
 
@@ -236,14 +236,14 @@ class Outputs:
 
     Construction checks every path (not a folder, not a device, FIFO or socket, not one of
     ``inputs``, an allowed extension) and reserves its temporary sibling, which locks the
-    output set against other processes (see :mod:`ipfit._atomic`) and proves the folder
+    output set against other processes (see :mod:`ipfit._utils.atomic`) and proves the folder
     exists (or, with ``make_folders``, can be made), is writable and has room; on any
     failure nothing is left behind. Then::
 
         with outputs.writing() as stage:
             writer(stage(final))          # write each output to its staged path
 
-    publishes every staged file as one set (:func:`ipfit._atomic.publish_set`) when the
+    publishes every staged file as one set (:func:`ipfit._utils.atomic.publish_set`) when the
     block ends normally, removes them all when it raises, and holds SIGINT/SIGTERM meanwhile
     so finished work is not lost. Errors name the outputs, never their temporary files.
     """

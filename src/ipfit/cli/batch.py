@@ -118,11 +118,11 @@ HTML_FILES = ("{name}.html", "{name}.png", "index.html")
 
 def write_viewers(folder: Path, batch) -> Path:
     """NAME.html and a NAME.png thumbnail per fitted shape, and index.html linking them."""
-    from .._atomic import write_text_atomic
+    from .._utils.atomic import write_text_atomic
     from ..datasets.loading import load
     from ..exceptions import IpfitError
-    from ..plotting import plot_result
-    from ..viewer import index_page, write_html
+    from ..viz.plotting import plot_result
+    from ..viz.viewer import index_page, write_html
 
     entries = []
     for row in batch.rows:

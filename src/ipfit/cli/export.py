@@ -10,7 +10,7 @@ NAME = "export"
 HELP = "write the fitted polynomial (and its gradient) as Python, C, GLSL, LaTeX or SymPy source"
 DESCRIPTION = """\
 Write f and its gradient as a standalone function with the data normalisation folded in, in
-nested Horner form (see ipfit.codegen): Python (f, gradient; works on numpy arrays), C
+nested Horner form (see ipfit.analysis.codegen): Python (f, gradient; works on numpy arrays), C
 (ipfit_f, ipfit_gradient), GLSL (ipfit_f, ipfit_gradient, and ipfit_sdf = f/|grad f| for ray
 marching, single precision), LaTeX (an aligned block listing the monomials in ipfit's graded
 order) or SymPy (a script defining the expression f). Without -o the source goes to stdout.
@@ -18,7 +18,7 @@ order) or SymPy (a script defining the expression f). Without -o the source goes
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    from ..codegen import LANGUAGES
+    from ..analysis.codegen import LANGUAGES
 
     parser.add_argument("result", metavar="RESULT.json", help="a result written by ipfit fit")
     parser.add_argument("--to", required=True, choices=LANGUAGES, help="target language")
@@ -28,9 +28,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from .._atomic import write_text_atomic
-    from ..codegen import to_source
-    from ..results import result_view
+    from .._utils.atomic import write_text_atomic
+    from ..analysis.codegen import to_source
+    from ..degree.results import result_view
     from ._common import Outputs, recorded_sources
 
     view = result_view(args.result)

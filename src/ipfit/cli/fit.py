@@ -79,8 +79,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def add_fit_options(parser: argparse.ArgumentParser) -> None:
     """The fit options shared by ``ipfit fit`` and ``ipfit batch`` (read back by :func:`search_settings`)."""
-    from ..adaptive import fixed_degree_methods
-    from ..options import (
+    from ..degree.adaptive import fixed_degree_methods
+    from ..degree.rules import RULES
+    from ..fitting.options import (
         DEFAULT_DELTA,
         DEFAULT_EPSILON,
         DEFAULT_ITERATIONS,
@@ -90,7 +91,6 @@ def add_fit_options(parser: argparse.ArgumentParser) -> None:
         PAPER_RULE,
         RECOMMENDED,
     )
-    from ..rules import RULES
 
     parser.add_argument("--degree", default="auto", metavar="auto|N",
                         help="'auto' for the adaptive degree (default), or a fixed even degree N")
@@ -128,8 +128,8 @@ def add_fit_options(parser: argparse.ArgumentParser) -> None:
 def search_settings(args: argparse.Namespace):
     """(method, options, rule) from the command line: --paper is the library's preset exactly."""
     from ..exceptions import InvalidInputError
-    from ..linear import LINEAR_METHODS
-    from ..options import DEFAULT_METHOD, DEFAULT_RULE, PAPER, PAPER_METHOD, PAPER_RULE, RECOMMENDED
+    from ..fitting.linear import LINEAR_METHODS
+    from ..fitting.options import DEFAULT_METHOD, DEFAULT_RULE, PAPER, PAPER_METHOD, PAPER_RULE, RECOMMENDED
 
     if args.paper:
         clash = [flag for flag, value in (("--method", args.method), ("--rule", args.rule),
@@ -185,8 +185,8 @@ def _report_kept(data, max_points: int | None) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from .. import basis
-    from ..adaptive import fit_adaptive
     from ..datasets.loading import load
+    from ..degree.adaptive import fit_adaptive
     from ..exceptions import InvalidInputError
 
     data = load(args.input, max_points=args.max_points)
@@ -256,8 +256,8 @@ def _plan_outputs(args: argparse.Namespace, label: str, dim: int) -> tuple[Path,
 
 def _write_outputs(outputs: Outputs, prefix: Path, payload: dict, result, points, normals, data, args) -> str | None:
     """Write every output; returns the --trim summary line, if any."""
-    from ..export import save_zero_set
-    from ..zeroset import extract_zero_set
+    from ..zeroset.export import save_zero_set
+    from ..zeroset.extract import extract_zero_set
 
     summary = None
     with outputs.writing() as stage:
@@ -271,12 +271,12 @@ def _write_outputs(outputs: Outputs, prefix: Path, payload: dict, result, points
         # with --trim the figure and the viewer show what the exported zero set holds
         trim = None if zero_set is None or zero_set.trim is None else zero_set.trim.distance
         if not args.no_picture:
-            from ..plotting import plot_result
+            from ..viz.plotting import plot_result
 
             plot_result(payload, points=points, path=stage(beside(prefix, ".png")), trim=trim,
                         faces=None if trim is None else data.faces)
         if args.html:
-            from ..viewer import write_html
+            from ..viz.viewer import write_html
 
             write_html(payload, points, stage(beside(prefix, ".html")), faces=data.faces, normals=normals, trim=trim)
         stage(beside(prefix, ".json")).write_text(json.dumps(payload, indent=1), encoding="utf-8")

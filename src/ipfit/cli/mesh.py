@@ -75,7 +75,7 @@ def check_trim_with_points(args: argparse.Namespace) -> None:
 
 def drawing_trim(trim, points) -> float | None:
     """The distance a drawing is trimmed to for ``--trim``'s value (None: not trimmed)."""
-    from ..trim import default_trim_distance
+    from ..zeroset.trim import default_trim_distance
 
     if trim is None:
         return None
@@ -105,7 +105,7 @@ def warn(command: str, message: str) -> None:
 def check_output_suffix(path: str, dim: int) -> None:
     """Refuse an OUT whose extension is not a zero-set format for a ``dim``-D result, before any work."""
     from ..exceptions import InvalidInputError
-    from ..export import CURVE_FORMATS, MESH_FORMATS
+    from ..zeroset.export import CURVE_FORMATS, MESH_FORMATS
 
     allowed, kind, example = (MESH_FORMATS, "a mesh", "out.ply") if dim == 3 else (CURVE_FORMATS, "curves",
                                                                                     "out.svg")
@@ -200,7 +200,7 @@ def trim_data(view, spec: str | None):
 def result_box(view, spec: str | None, margin: float, command: str):
     """The box to extract or draw a result's zero set in: that of --points DATA when given, else
     the result's "bounds", else that of the data it records, else one around its normalisation."""
-    from ..zeroset import data_bounds, default_bounds
+    from ..zeroset.extract import data_bounds, default_bounds
 
     points = None
     if spec is not None or view.bounds is None:
@@ -213,9 +213,9 @@ def result_box(view, spec: str | None, margin: float, command: str):
 
 
 def run(args: argparse.Namespace) -> int:
+    from ..degree.results import result_view
     from ..exceptions import InvalidInputError
-    from ..results import result_view
-    from ..zeroset import data_bounds, extract_zero_set
+    from ..zeroset.extract import data_bounds, extract_zero_set
 
     view = result_view(args.result)
     check_output_suffix(args.output, view.dim)

@@ -114,7 +114,7 @@ def _report_agreement(agreement, source: str) -> None:
 def _report_outward(points, faces, reference, estimated, source) -> None:
     import numpy as np
 
-    from ..io.mesh import outward_vertices
+    from ..geometry.mesh import outward_vertices
 
     start = time.perf_counter()
     outward = outward_vertices(points, faces, reference)  # False where the reference is NaN

@@ -60,8 +60,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..plotting import check_figure_path, plot_result
-    from ..results import result_view
+    from ..degree.results import result_view
+    from ..viz.plotting import check_figure_path, plot_result
     from .mesh import check_trim_with_points, drawing_trim, load_points, trim_data, trimmed_note
 
     check_figure_path(args.output, "-o/--output")

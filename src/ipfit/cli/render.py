@@ -10,7 +10,7 @@ NAME = "render"
 HELP = "ray-cast a 3D fit to a PNG: the exact zero set, shaded from the gradient"
 DESCRIPTION = """\
 Cast one ray per pixel (orthographic camera) into the box around the data, find every
-intersection with the zero set exactly (roots of f restricted to the ray, see ipfit.rays) and
+intersection with the zero set exactly (roots of f restricted to the ray, see ipfit.analysis.rays) and
 shade the first one from the normal grad f / |grad f|. Unlike `ipfit plot`, no mesh is built,
 so thin parts and sharp features are drawn as they are. The box is the one recorded in the
 result, or the data's (INPUT) with a margin.
@@ -34,9 +34,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from ..analysis.rays import render
+    from ..degree.results import result_view
     from ..exceptions import InvalidInputError
-    from ..rays import render
-    from ..results import result_view
     from ._common import Outputs, recorded_sources
     from .mesh import result_box, warn
 

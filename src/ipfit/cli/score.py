@@ -45,9 +45,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from ..degree.results import result_view, write_result
     from ..exceptions import InvalidInputError
-    from ..quality import looks_like_contour, quality
-    from ..results import result_view, write_result
+    from ..zeroset.quality import looks_like_contour, quality
     from .mesh import load_points
 
     if args.write and args.degree is not None:
@@ -68,7 +68,7 @@ def run(args: argparse.Namespace) -> int:
         args.contour == "yes" or (args.contour == "auto" and looks_like_contour(points)))
     q = quality(poly, points, faces=faces, ordered_contour=ordered, tau=args.tau, tau_fraction=args.tau_fraction,
                 margin=args.margin, resolution=args.resolution)
-    from ..projection import distance_summary
+    from ..analysis.projection import distance_summary
 
     dist = distance_summary(poly, points)  # true distance (closest points) beside Taubin's estimate
     if args.json:

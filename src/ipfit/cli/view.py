@@ -47,9 +47,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from .._result_schema import check_coordinates
     from ..datasets.loading import load
+    from ..degree.results import result_view
     from ..exceptions import InvalidInputError
-    from ..results import result_view
-    from ..viewer import MAX_FACES, write_html
+    from ..viz.viewer import MAX_FACES, write_html
     from ._common import Outputs, recorded_sources
 
     check_trim_with_points(args)

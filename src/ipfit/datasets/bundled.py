@@ -22,7 +22,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..exceptions import InvalidInputError
-from ..io import CONTOUR_SPAN, PointCloud, fill_missing_normals, read_mesh, read_points, vertex_normals_from_faces
+from ..geometry.mesh import fill_missing_normals, vertex_normals_from_faces
+from ..io import CONTOUR_SPAN, PointCloud, read_mesh, read_points
 
 __all__ = ["DatasetInfo", "list_datasets", "dataset_names", "dataset_path", "load_dataset", "dataset_faces",
            "DATA_DIR"]

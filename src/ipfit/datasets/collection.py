@@ -14,8 +14,8 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from .._numeric import unit_rows
-from .._validation import check_int
+from .._utils.numeric import unit_rows
+from .._utils.validation import check_int
 from . import synthetic
 
 __all__ = ["GeneratedShape", "collection", "KINDS", "NOISE_LEVELS"]

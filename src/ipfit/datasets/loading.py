@@ -16,7 +16,7 @@ import os
 
 import numpy as np
 
-from .._validation import check_int, check_rng
+from .._utils.validation import check_int, check_rng
 from ..cloud import Cloud
 from ..exceptions import ReadError
 from ..io._base import MIN_POINTS, as_path

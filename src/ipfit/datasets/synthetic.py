@@ -12,7 +12,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .. import basis
-from .._validation import check_rng
+from .._utils.validation import check_rng
 from ..polynomial import ImplicitPolynomial
 
 __all__ = ["Shape", "circle", "ellipse", "sphere", "ellipsoid", "torus", "from_terms"]

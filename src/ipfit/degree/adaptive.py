@@ -1,7 +1,7 @@
 """Adaptive degree selection: the paper's Algorithm 1, and the rules built on it.
 
 For g = 2, 4, …, G, fit at degree g with a fixed-degree method and, with a geometric rule,
-measure the zero set's quality; a degree rule (:class:`ipfit.rules.DegreeRule`) says whether to
+measure the zero set's quality; a degree rule (:class:`ipfit.degree.rules.DegreeRule`) says whether to
 measure and repair, when to stop, which degree to take and why. This module is the loop alone.
 Every degree tried is kept, so a user can inspect the whole path and take another degree.
 """
@@ -17,10 +17,10 @@ from typing import Any, cast
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from . import basis
-from ._result import Result
-from ._result_schema import check_coordinates
-from ._validation import (
+from .. import basis
+from .._result_schema import check_coordinates
+from .._utils.result import Result
+from .._utils.validation import (
     as_faces,
     as_normals,
     as_points,
@@ -32,12 +32,11 @@ from ._validation import (
     check_rng,
     error,
 )
-from .cloud import Cloud, as_cloud
-from .linear import LINEAR_METHODS, fit_linear
-from .normals import estimate_normals
-from .objective import Measures
-from .objective import measures as compute_measures
-from .options import (
+from ..cloud import Cloud, as_cloud
+from ..fitting.linear import LINEAR_METHODS, fit_linear
+from ..fitting.objective import Measures
+from ..fitting.objective import measures as compute_measures
+from ..fitting.options import (
     DEFAULT_DELTA,
     DEFAULT_EPSILON,
     DEFAULT_METHOD,
@@ -46,9 +45,10 @@ from .options import (
     REFINE_METHODS,
     SearchOptions,
 )
-from .polynomial import ImplicitPolynomial
-from .quality import Quality, looks_like_contour, quality
-from .refine import refine
+from ..fitting.refine import refine
+from ..normals import estimate_normals
+from ..polynomial import ImplicitPolynomial
+from ..zeroset.quality import Quality, looks_like_contour, quality
 from .repair import repair
 from .rules import RULES, DegreeRule, get_rule, select_degree, select_degree_geometric
 
@@ -70,8 +70,8 @@ class DegreeResult(Result):
     x, fun : the coefficients (normalised coordinates) and the paper's distance at them.
     nit, nfev : the fixed-degree method's iterations and objective evaluations (0 for a linear fit).
     success, message : whether the method reached a finite fit, and how it ended.
-    degree, polynomial, measures : the fit and its :class:`~ipfit.objective.Measures`.
-    quality : its :class:`~ipfit.quality.Quality`, when the rule measured it.
+    degree, polynomial, measures : the fit and its :class:`~ipfit.fitting.objective.Measures`.
+    quality : its :class:`~ipfit.zeroset.quality.Quality`, when the rule measured it.
     seconds : wall-clock time of this degree.
     solutions : the refinement's best distinct solutions (empty for a linear fit).
     """
@@ -162,14 +162,14 @@ class AdaptiveResult(Result):
         raise error("degree", f"one of the degrees tried ({tried})", str(degree))
 
     def show(self, points=None, **kwargs):
-        """An interactive plotly figure of every degree (:func:`ipfit.viewer.result_figure`)."""
-        from .viewer import result_figure
+        """An interactive plotly figure of every degree (:func:`ipfit.viz.viewer.result_figure`)."""
+        from ..viz.viewer import result_figure
 
         return result_figure(self, points, **kwargs)
 
     def _repr_html_(self) -> str:
         # Notebooks display the viewer inline, without writing files (plotly is inlined).
-        from .viewer import to_html
+        from ..viz.viewer import to_html
 
         return to_html(self, full_html=False)
 
@@ -269,9 +269,9 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
     epsilon : ε, the smallest smoothness gain that justifies a higher degree.
     delta : δ of the paper's distance.
     rule : 'capture' (default), 'geometric' or 'paper' (Algorithm 1 exactly), or a
-        :class:`~ipfit.rules.DegreeRule` object (one of :data:`ipfit.rules.RULES` or your own);
-        see :mod:`ipfit.rules`. 'capture' and 'geometric' measure the geometric quality of every
-        degree (:func:`ipfit.quality.quality`: F-score, precision, recall, spurious components,
+        :class:`~ipfit.degree.rules.DegreeRule` object (one of :data:`ipfit.degree.rules.RULES` or your own);
+        see :mod:`ipfit.degree.rules`. 'capture' and 'geometric' measure the geometric quality of every
+        degree (:func:`ipfit.zeroset.quality.quality`: F-score, precision, recall, spurious components,
         closed) and try to clean a degree whose zero set is not clean before rejecting it
         (with 'capture', also a clean degree that bulges away from the data: precision below
         0.95 at a recall of at least 0.9).
@@ -281,7 +281,7 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
         the paper's rule restricted to clean degrees.
     faces, ordered_contour : describe the data's shape for the quality measures (mesh faces, None
         with a cloud;
-        a 2D contour in order, detected by :func:`ipfit.quality.looks_like_contour` when
+        a 2D contour in order, detected by :func:`ipfit.zeroset.quality.looks_like_contour` when
         None), used by the 'capture' and 'geometric' rules.
     rng : seed or Generator (SPEC 7), passed to the metaheuristics.
     progress : called with a dict per event ('degree_start', 'iteration' with its 'stage',
@@ -395,7 +395,7 @@ def check_settings(method, options, rule, epsilon, delta, min_degree,
                    max_degree=None) -> tuple[Any, SearchOptions | None, DegreeRule, float, float, int]:
     """The data-independent arguments of :func:`fit_adaptive`, checked (the one place: batches
     check them once before sending shapes to workers). Returns them normalised (the rule as its
-    :class:`~ipfit.rules.DegreeRule` object)."""
+    :class:`~ipfit.degree.rules.DegreeRule` object)."""
     if not callable(method):
         method = check_choice(method, "method", fixed_degree_methods())
     if method in REFINE_METHODS:

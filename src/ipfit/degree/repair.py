@@ -1,10 +1,10 @@
 """Repairs of one degree's fit before a degree rule judges it.
 
-A degree the rule does not count as done (:meth:`ipfit.rules.DegreeRule.is_done`: a zero set
+A degree the rule does not count as done (:meth:`ipfit.degree.rules.DegreeRule.is_done`: a zero set
 that is not clean, with spurious components or open sheets, or, for the capture rule, a clean
 one that bulges away from the data) gets its stray zero set sampled and held clear by the
 far-field term in a short L-BFGS polish from its fit (:func:`repair`). The adaptive loop
-(:mod:`ipfit.adaptive`) calls it; the rounds tried are recorded in ``DegreeResult.cleanup``.
+(:mod:`ipfit.degree.adaptive`) calls it; the rounds tried are recorded in ``DegreeResult.cleanup``.
 What counts as clean or done is the rule's; this module only repairs.
 """
 
@@ -17,9 +17,9 @@ from typing import TYPE_CHECKING, Any, cast
 import numpy as np
 from numpy.typing import NDArray
 
-from .cloud import Cloud
-from .options import SearchOptions
-from .quality import Quality, stray_samples
+from ..cloud import Cloud
+from ..fitting.options import SearchOptions
+from ..zeroset.quality import Quality, stray_samples
 
 if TYPE_CHECKING:
     from .adaptive import DegreeResult

@@ -3,7 +3,7 @@
 A result is the JSON object ``ipfit fit`` writes (``ImplicitPolynomial.save`` writes its
 first keys). Its keys are one written schema, :data:`SCHEMA`, documented in
 ``docs/result-format.md``; every reader of results (``ImplicitPolynomial.load``, the
-``mesh``, ``plot`` and ``score`` commands, :func:`ipfit.plotting.plot_result`) goes
+``mesh``, ``plot`` and ``score`` commands, :func:`ipfit.viz.plotting.plot_result`) goes
 through :func:`validate_result`, so a corrupt file gives one line naming the bad key.
 
 * :func:`load_result` — a path, JSON text, dict or polynomial → the validated dict;
@@ -35,8 +35,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ._atomic import write_text_atomic
-from ._result_schema import (
+from .._result_schema import (
     FORMAT_NAME,
     FORMAT_VERSION,
     MAX_COORDINATE,
@@ -49,9 +48,10 @@ from ._result_schema import (
     schema_markdown,
     validate_result,
 )
-from ._validation import error
-from .exceptions import InvalidInputError, ReadError
-from .polynomial import ImplicitPolynomial, Normalization, to_jsonable
+from .._utils.atomic import write_text_atomic
+from .._utils.validation import error
+from ..exceptions import InvalidInputError, ReadError
+from ..polynomial import ImplicitPolynomial, Normalization, to_jsonable
 
 __all__ = ["FORMAT_NAME", "FORMAT_VERSION", "MAX_DEGREE", "MAX_COORDINATE", "MAX_DEPTH", "SCHEMA", "Key",
            "validate_result", "load_result", "result_view",

@@ -41,8 +41,8 @@ from abc import ABC, abstractmethod
 from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, TypeGuard
 
-from ._validation import check_choice, error
-from .quality import Quality
+from .._utils.validation import check_choice, error
+from ..zeroset.quality import Quality
 
 if TYPE_CHECKING:
     from .adaptive import DegreeResult
@@ -140,7 +140,7 @@ def is_clean(q: Quality | None, *, ignore_specks: bool = True) -> TypeGuard[Qual
 
     Parameters
     ----------
-    q : the degree's :class:`~ipfit.quality.Quality`, or None when it was not measured (never clean).
+    q : the degree's :class:`~ipfit.zeroset.quality.Quality`, or None when it was not measured (never clean).
     ignore_specks : True (the capture rule): a non-empty zero set, every spurious component a
         speck (:func:`is_speck`) and every piece *near the data* closed inside the box. False
         (the geometric rule): no spurious component at all and the *whole* zero set closed
@@ -153,7 +153,7 @@ def is_clean(q: Quality | None, *, ignore_specks: bool = True) -> TypeGuard[Qual
     Examples
     --------
     >>> from ipfit.datasets import synthetic
-    >>> from ipfit.quality import quality
+    >>> from ipfit.zeroset.quality import quality
     >>> shape = synthetic.circle()
     >>> is_clean(quality(shape.polynomial, shape.points))
     True
@@ -265,7 +265,7 @@ class DegreeRule(ABC):
         The rule's name, written in results (``adaptive.rule``) and accepted by
         :func:`get_rule` once the rule is in :data:`RULES`.
     measured : bool
-        Whether every degree's zero set is measured (:class:`~ipfit.quality.Quality`) and, when
+        Whether every degree's zero set is measured (:class:`~ipfit.zeroset.quality.Quality`) and, when
         not clean, repaired; an unmeasured degree has ``quality=None`` and is never clean.
     ignore_specks : bool
         Which definition of clean applies (:func:`is_clean`).
@@ -298,7 +298,7 @@ class DegreeRule(ABC):
         return max((r.quality.f_score for r in results if self.is_clean(r.quality)), default=0.0)
 
     def is_done(self, entry: DegreeResult, best_f: float = 0.0) -> bool:
-        """Nothing left to repair in ``entry`` (:func:`ipfit.repair.repair` stops, or does not
+        """Nothing left to repair in ``entry`` (:func:`ipfit.degree.repair.repair` stops, or does not
         start); ``best_f`` is the best clean F-score of the degrees before it. Default: clean."""
         return self.is_clean(entry.quality)
 

@@ -1,10 +1,10 @@
 """Compiled per-point reduction of the paper's objective (Eq. 4), imported lazily.
 
-Kept apart from :mod:`ipfit.objective` so that ``import ipfit`` does not pay numba's import
-time; the first :class:`~ipfit.objective.Objective` evaluation loads (and caches) it.
+Kept apart from :mod:`ipfit.fitting.objective` so that ``import ipfit`` does not pay numba's import
+time; the first :class:`~ipfit.fitting.objective.Objective` evaluation loads (and caches) it.
 
 Threading: the kernel itself is serial and releases the GIL (``nogil``); parallelism comes
-from :class:`~ipfit.objective.Objective` running blocks of points on its own worker threads,
+from :class:`~ipfit.fitting.objective.Objective` running blocks of points on its own worker threads,
 each with single-threaded BLAS followed by this reduction while the block's products are
 still in cache. numba's parallel layers are not used: with OpenBLAS's worker threads spinning
 between calls, ``prange`` over the reduction was measured 2-50x slower than a serial loop on a
@@ -81,20 +81,6 @@ def reduce_far_field(values, grads, scale, weight, tiny, sum_far):  # pragma: no
             gz = np.float64(grads[i, z + p]) if z >= 0 else 0.0
             short = 1.0 - k * np.float64(values[i, p]) / np.sqrt(max(gx * gx + gy * gy + gz * gz, tiny))
             sum_far[p] += w * min(max(short, 0.0), 2.0)
-
-
-@njit(**_JIT)
-def gather_gradients(at, source, factor, out):  # pragma: no cover - compiled
-    """``out[i, k·P + p] = factor[k, i] · at[source[k, i], p]``: the coefficients of ∂f/∂x_k of
-    every member (:func:`ipfit.basis.gradient_coefficients`), in one pass without temporaries."""
-    dim, n_low = source.shape
-    n_members = at.shape[1]
-    for k in range(dim):
-        for i in range(n_low):
-            f = factor[k, i]
-            row = at[source[k, i]]
-            for p in range(n_members):
-                out[i, k * n_members + p] = row[p] * f
 
 
 # Reassociation lets LLVM vectorise the dot products of one row (the polish's pass works on

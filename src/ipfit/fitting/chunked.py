@@ -1,7 +1,7 @@
 """Linear fits of clouds bigger than memory: a Dask array of points and normals, chunk by chunk.
 
 :func:`fit_chunked` runs the 3L, ridge, gradient-one and least-squares fits of
-:mod:`ipfit.linear` on a chunked cloud without ever building its design matrix: each chunk's
+:mod:`ipfit.fitting.linear` on a chunked cloud without ever building its design matrix: each chunk's
 rows are reduced to the small (d + 1) × (d + 1) triangular factor R of their QR (in row
 blocks, by the same generators the in-memory fits use), the chunks' factors are stacked and
 factorised once more (a tall-skinny QR across chunks) and the small system is solved as
@@ -33,12 +33,20 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ._numeric import unit_rows
-from ._optional import require
-from ._validation import as_points, check_choice, check_degree, check_enough_points, check_int, check_real_dtype, error
-from .exceptions import ReadError
+from .._utils.numeric import unit_rows
+from .._utils.optional import require
+from .._utils.validation import (
+    as_points,
+    check_choice,
+    check_degree,
+    check_enough_points,
+    check_int,
+    check_real_dtype,
+    error,
+)
+from ..exceptions import ReadError
+from ..polynomial import ImplicitPolynomial, Normalization
 from .linear import LINEAR_METHODS, _fit_problem, _Problem, _r_of_blocks, check_params
-from .polynomial import ImplicitPolynomial, Normalization
 
 __all__ = ["fit_chunked", "open_cloud", "CHUNKED_METHODS", "DEFAULT_SAMPLE_SIZE"]
 
@@ -100,7 +108,7 @@ def open_cloud(path: str | Path, chunk_rows: int = 1 << 20):
     each, in name order, unless bigger than ``chunk_rows``). Nothing is read until the
     arrays are computed, and each task keeps only its own rows.
     """
-    da = require("dask.array", "ipfit.chunked.open_cloud")
+    da = require("dask.array", "ipfit.fitting.chunked.open_cloud")
 
     folder = Path(path)
     if (folder / "points.npy").is_file() and (folder / "normals.npy").is_file():
@@ -140,7 +148,7 @@ class _Chunks:
 
 @dataclass(frozen=True)
 class _ChunkedProblem(_Problem):
-    """A :class:`~ipfit.linear._Problem` whose ``u`` is a subsample; the rows come chunk by chunk."""
+    """A :class:`~ipfit.fitting.linear._Problem` whose ``u`` is a subsample; the rows come chunk by chunk."""
 
     chunks: Any = None
     total: int = 0

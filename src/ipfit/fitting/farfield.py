@@ -11,7 +11,7 @@ carry their signed distance to the data (sign from the nearest point's normal):
   where f has the wrong sign, or where the zero set comes close to a sample (its Taubin
   distance is a small fraction of the sample's distance to the data). The term uses at most
   a few hundred samples chosen once per fit (:func:`term_samples`), and
-  :class:`~ipfit.objective.Objective` evaluates them in the same compiled pass as the data,
+  :class:`~ipfit.fitting.objective.Objective` evaluates them in the same compiled pass as the data,
   so the term costs about as much as that many extra data points. In a DE search it is
   evaluated only for the trials whose data distance does not already lose to their parent
   (``Objective(population, bound)``): 15-40 % of them, so the term takes 8-25 % of the
@@ -25,9 +25,9 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
-from . import basis
-from ._validation import as_matching, as_points, check_nonnegative, check_positive, error
-from .cloud import Cloud, as_cloud
+from .. import basis
+from .._utils.validation import as_matching, as_points, check_nonnegative, check_positive, error
+from ..cloud import Cloud, as_cloud
 
 __all__ = ["far_field_samples", "term_samples", "term_sample_count", "fused_rows", "FarFieldTerm", "DEFAULT_MARGIN",
            "DEFAULT_CLEARANCE", "DEFAULT_RATIO", "DEFAULT_TERM_WEIGHT"]
@@ -149,7 +149,7 @@ def _spread(candidates: NDArray[np.float64], reach: NDArray[np.float64], count: 
     # alone put nearly all of them in the band just outside the clearance).
     if count >= len(candidates):
         return np.arange(len(candidates))
-    from ._distance_kernels import farthest_points
+    from ..geometry._distance_kernels import farthest_points
 
     chosen = np.empty(count, dtype=np.int64)
     farthest_points(np.ascontiguousarray(candidates, dtype=np.float64), np.ascontiguousarray(reach, dtype=np.float64),
@@ -216,7 +216,7 @@ class FarFieldTerm:
     invariant to positive scaling of the coefficients, like the paper's distance, and
     ``weight = 0`` leaves the paper's objective exactly.
 
-    Passed in ``terms`` to :class:`~ipfit.objective.Objective`, the samples join the data
+    Passed in ``terms`` to :class:`~ipfit.fitting.objective.Objective`, the samples join the data
     rows of the objective's compiled pass (:meth:`rows`); on its own, :meth:`__call__` runs
     the same kernel over the samples alone.
 

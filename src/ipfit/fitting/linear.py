@@ -26,12 +26,19 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 
-from . import basis
-from ._validation import check_choice, check_degree, check_enough_points, check_nonnegative, check_positive, error
-from .cloud import Cloud, as_cloud
-from .exceptions import ConditioningWarning
+from .. import basis
+from .._utils.validation import (
+    check_choice,
+    check_degree,
+    check_enough_points,
+    check_nonnegative,
+    check_positive,
+    error,
+)
+from ..cloud import Cloud, as_cloud
+from ..exceptions import ConditioningWarning
+from ..polynomial import ImplicitPolynomial, Normalization
 from .farfield import far_field_samples
-from .polynomial import ImplicitPolynomial, Normalization
 
 __all__ = [
     "fit_lstsq",
@@ -92,7 +99,7 @@ class _Problem:
     def design(self, pts: NDArray | None = None) -> NDArray[np.float64]:
         return basis.monomials(self.u if pts is None else pts, self.exponents)
 
-    # What the solvers read of the cloud; a chunked cloud (ipfit.chunked) overrides them.
+    # What the solvers read of the cloud; a chunked cloud (ipfit.fitting.chunked) overrides them.
     @property
     def n_points(self) -> int:
         return len(self.u)
@@ -392,7 +399,7 @@ def _fit(method: str, points, normals, degree, normalization=None, **params) -> 
 
 
 def _fit_problem(method: str, problem: _Problem, params: dict, **extra_info) -> ImplicitPolynomial:
-    """Solve a prepared problem with checked parameters (also used by :mod:`ipfit.chunked`)."""
+    """Solve a prepared problem with checked parameters (also used by :mod:`ipfit.fitting.chunked`)."""
     spec = LINEAR_METHODS[method]
     try:
         with np.errstate(all="ignore"):

@@ -12,8 +12,8 @@ A whole population A (P × d) is evaluated at once. With M the N × d monomial m
 and because ∂f/∂x_k = m_{g−1}(x)ᵀ (D_k a), the gradients are products with the narrower
 N × d_{g−1} matrix L (the first d_{g−1} columns of M in the graded order) after a gather
 D_k Aᵀ. Points are processed in blocks: two BLAS products per block, then a compiled
-per-point reduction while the block is still in cache (:mod:`ipfit._objective_kernels`).
-The samples of a :class:`~ipfit.farfield.FarFieldTerm` passed in ``terms`` are extra rows of
+per-point reduction while the block is still in cache (:mod:`ipfit.fitting._objective_kernels`).
+The samples of a :class:`~ipfit.fitting.farfield.FarFieldTerm` passed in ``terms`` are extra rows of
 the same pass (their own reduction), so the term costs what as many data points cost.
 
 Memory: the design matrix is kept between evaluations only while it is small
@@ -49,13 +49,14 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 
-from . import basis
-from ._validation import as_normals, as_points, check_degree, check_nonnegative, error
+from .. import basis
+from .._utils.threads import default_threads
+from .._utils.validation import as_normals, as_points, check_degree, check_nonnegative, error
+from ..polynomial import ImplicitPolynomial
 from .farfield import FarFieldTerm, fused_rows
-from .polynomial import ImplicitPolynomial
 
 if TYPE_CHECKING:
-    from .polynomial import Normalization
+    from ..polynomial import Normalization
 
 __all__ = ["Measures", "measures", "Objective", "ObjectiveTerm", "TAUBIN_CAP", "DEFAULT_DELTA",
            "single_threaded_blas", "default_threads"]
@@ -105,20 +106,6 @@ def single_threaded_blas():
     """
     ctl = _controller()
     return ctl.limit(limits=1, user_api="blas") if ctl is not None else contextlib.nullcontext()
-
-
-def default_threads() -> int:
-    """Worker threads for population evaluation (and big k-d tree queries): the CPUs this process
-    may use, at most ``OMP_NUM_THREADS`` when that is set (a batch's Dask workers set it to 1:
-    one thread per worker process)."""
-    try:
-        usable = max(1, len(os.sched_getaffinity(0)))
-    except AttributeError:  # pragma: no cover - not Linux
-        usable = max(1, os.cpu_count() or 1)
-    try:
-        return max(1, min(usable, int(os.environ.get("OMP_NUM_THREADS", ""))))
-    except ValueError:  # unset or not a number
-        return usable
 
 
 _POOLS: dict[tuple[int, int], ThreadPoolExecutor] = {}
@@ -224,7 +211,7 @@ class Objective:
     terms : sequence of :class:`ObjectiveTerm`
         Extra terms added to the distance in :meth:`__call__` and :meth:`value_and_grad`;
         empty (default) gives exactly the paper's objective, and so does a
-        :class:`~ipfit.farfield.FarFieldTerm` of weight 0. Far-field terms (same degree) are
+        :class:`~ipfit.fitting.farfield.FarFieldTerm` of weight 0. Far-field terms (same degree) are
         evaluated as extra rows of the compiled pass; :meth:`measures` never includes terms.
     threads : int, optional
         Worker threads for population evaluation (default: the usable cores); used only when
@@ -287,7 +274,7 @@ class Objective:
                   **kwargs) -> Objective:
         """Normalise ``points`` with :meth:`Normalization.from_points` (as the linear fits do)
         and build the objective in those coordinates; ``.normalization`` records the map."""
-        from .polynomial import Normalization
+        from ..polynomial import Normalization
 
         pts = as_points(points)
         norm = Normalization.from_points(pts)
@@ -517,7 +504,7 @@ def measures(poly_or_population: ImplicitPolynomial | ArrayLike, points: ArrayLi
     Taubin terms 0 and 3/4, cosines 1 and 0.
 
     >>> from ipfit import ImplicitPolynomial
-    >>> from ipfit.objective import measures
+    >>> from ipfit.fitting.objective import measures
     >>> circle = ImplicitPolynomial.from_coefficients([-1, 0, 0, 1, 0, 1], dim=2)
     >>> m = measures(circle, [[1.0, 0.0], [2.0, 0.0]], [[1.0, 0.0], [0.0, 1.0]])
     >>> m.dissimilarity, m.smoothness, m.distance

@@ -25,8 +25,8 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from ._validation import check_choice, check_int, check_nonnegative, check_positive, check_probability, error
-from .exceptions import InvalidInputError
+from .._utils.validation import check_choice, check_int, check_nonnegative, check_positive, check_probability, error
+from ..exceptions import InvalidInputError
 from .farfield import DEFAULT_TERM_WEIGHT
 from .linear import LINEAR_METHODS, check_params
 from .objective import DEFAULT_DELTA
@@ -88,7 +88,7 @@ class StartFit(NamedTuple):
 
 def parse_start_fit(spec: str, name: str = "start_fits") -> StartFit:
     """Split ``"ridge(kappa=1e-6)"`` into the method and its parameters, checking both with the
-    method's entry in :data:`ipfit.linear.LINEAR_METHODS` (the one registry of linear fits).
+    method's entry in :data:`ipfit.fitting.linear.LINEAR_METHODS` (the one registry of linear fits).
 
     >>> parse_start_fit("3l(c=0.02)")
     StartFit(spec='3l(c=0.02)', method='3l', params={'c': 0.02})
@@ -163,7 +163,7 @@ class SearchOptions:
         How many best distinct solutions a refinement returns.
     search_points : int, None or "auto", default "auto"
         DE/PSO evaluate the population on a well-spread subsample of this many points
-        (:func:`ipfit.sampling.spread_subsample`, fixed seed); the start fits' ranking, the
+        (:func:`ipfit.geometry.sampling.spread_subsample`, fixed seed); the start fits' ranking, the
         polish and every reported measure use all points. None: all points (the paper).
         "auto": 1,000 in 2D, 3,000 in 3D (:data:`AUTO`).
     stall_generations : int, None or "auto", default "auto"

@@ -3,7 +3,7 @@
 :func:`refine` minimises the paper's distance (Eq. 5), plus the far-field term of the
 recommended pipeline, with DE or PSO started from linear fits, and (in the "+polish" methods)
 polishes the best member with L-BFGS on the analytic gradient. It runs in named steps:
-:func:`_objectives` → :func:`~ipfit.starts.start_fits` → :func:`_search` → :func:`_polish` →
+:func:`_objectives` → :func:`~ipfit.fitting.starts.start_fits` → :func:`_search` → :func:`_polish` →
 :func:`_best_distinct` → :class:`RefineResult`.
 
 Design notes:
@@ -11,7 +11,7 @@ Design notes:
 * The distance ignores positive scaling of the coefficients, so candidates live on a unit
   sphere: every trial vector (DE) and new position (PSO) is projected back onto it.
 * By default the population moves in whitened coordinates y = R a (R from
-  :meth:`~ipfit.objective.Objective.whitening`), in which every direction changes f and ∇f on
+  :meth:`~ipfit.fitting.objective.Objective.whitening`), in which every direction changes f and ∇f on
   the data alike. In raw coefficients the high-degree terms dominate and DE barely moves the
   start fits at degree ≥ 6 (the paper's observation); :data:`ipfit.PAPER` searches there.
 * The polish (same whitening as preconditioner) starts from the search's best member and from
@@ -33,18 +33,18 @@ import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
-from . import basis
-from ._numeric import unit_rows
-from ._result import Result
-from ._validation import as_points, check_degree, check_enough_points, check_nonnegative, check_rng, error
-from .cloud import Cloud, as_cloud
+from .. import basis
+from .._utils.numeric import unit_rows
+from .._utils.result import Result
+from .._utils.validation import as_points, check_degree, check_enough_points, check_nonnegative, check_rng, error
+from ..cloud import Cloud, as_cloud
+from ..geometry.sampling import spread_subsample
+from ..optimize import DifferentialEvolution, OptimizeResult, ParticleSwarm
+from ..optimize import polish as lbfgs
+from ..polynomial import ImplicitPolynomial, Normalization
 from .farfield import FarFieldTerm
 from .objective import Measures, Objective, single_threaded_blas
-from .optimize import DifferentialEvolution, OptimizeResult, ParticleSwarm
-from .optimize import polish as lbfgs
 from .options import DEFAULT_DELTA, DEFAULT_METHOD, RECOMMENDED, REFINE_METHODS, MethodOptions, SearchOptions
-from .polynomial import ImplicitPolynomial, Normalization
-from .sampling import spread_subsample
 from .starts import START_POINTS, StartFits, initial_population, start_fits
 
 __all__ = ["refine", "RefineResult", "REFINE_METHODS"]
@@ -81,7 +81,7 @@ class RefineResult(Result):
     success : True when a finite objective value was reached and no stage failed.
     message : how each stage ended.
     polynomial : the best polynomial (canonical: f > 0 outside), its measures filled in.
-    measures : its :class:`~ipfit.objective.Measures` (the paper's, without any extra term).
+    measures : its :class:`~ipfit.fitting.objective.Measures` (the paper's, without any extra term).
     history : best objective value after each generation, starting with the initial
         population's (``nit + 1`` values; one value for ``method="polish"``).
     polish_history : the polish's value after each L-BFGS iteration (empty without polish).

@@ -13,15 +13,15 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from . import basis
-from ._numeric import unit_rows
-from ._validation import error
-from .cloud import Cloud, as_cloud
-from .exceptions import IpfitError
+from .. import basis
+from .._utils.numeric import unit_rows
+from .._utils.validation import error
+from ..cloud import Cloud, as_cloud
+from ..exceptions import IpfitError
+from ..geometry.sampling import spread_subsample
+from ..polynomial import ImplicitPolynomial, Normalization
 from .linear import DEFAULT_FAR_ROW_WEIGHT, fit_linear
 from .options import StartFit
-from .polynomial import ImplicitPolynomial, Normalization
-from .sampling import spread_subsample
 
 __all__ = ["StartFits", "start_fits", "initial_population"]
 

@@ -1,8 +1,8 @@
-"""Compiled exact point–segment and point–triangle distances for :mod:`ipfit._distance`, imported lazily.
+"""Compiled exact point–segment and point–triangle distances for :mod:`ipfit.geometry.distance`, imported lazily.
 
 Kept apart so that ``import ipfit`` does not pay numba's import time. The kernels are serial
 (``nogil``, no ``prange``): on a 2-core machine numba's threads fight OpenBLAS's spinning
-workers (see :mod:`ipfit._objective_kernels`), and one pass over a few hundred thousand
+workers (see :mod:`ipfit.fitting._objective_kernels`), and one pass over a few hundred thousand
 candidates takes tens of milliseconds anyway.
 
 The nearest point of a segment is the clamped projection; that of a triangle is the

@@ -1,12 +1,12 @@
 """Distances from query points to a shape: bare points, polyline segments or mesh triangles.
 
-The engine of :mod:`ipfit.quality` (distances between the data and a zero set) and of
-:mod:`ipfit.trim` (which parts of a zero set lie near the data): a :class:`Target` holds
+The engine of :mod:`ipfit.zeroset.quality` (distances between the data and a zero set) and of
+:mod:`ipfit.zeroset.trim` (which parts of a zero set lie near the data): a :class:`Target` holds
 samples of the shape in a k-d tree, finds candidate elements among the nearest samples and
-computes the distance to them exactly (:mod:`ipfit._distance_kernels`). Both modules import it;
+computes the distance to them exactly (:mod:`ipfit.geometry._distance_kernels`). Both modules import it;
 neither imports the other. The samples themselves (:class:`Samples`, :func:`sample_segments`,
 :func:`sample_triangles`) are also the quadrature of a zero set's measures
-(:meth:`ipfit.zeroset.ZeroSet.sample`), which is why :mod:`ipfit.zeroset` imports them from
+(:meth:`ipfit.zeroset.extract.ZeroSet.sample`), which is why :mod:`ipfit.zeroset.extract` imports them from
 here and this module imports nothing of the package at import time.
 """
 
@@ -21,8 +21,8 @@ __all__ = ["Samples", "sample_segments", "sample_triangles", "Target", "points_t
            "data_target", "query_workers", "DEFAULT_TAU_FRACTION", "DEFAULT_MAX_SAMPLES"]
 
 #: The tolerance τ within which a point counts as on the data's shape, as a fraction of the
-#: data's bounding-box diagonal: the default of :func:`ipfit.quality.quality` and the least
-#: default distance of :func:`ipfit.trim.trim_zero_set`.
+#: data's bounding-box diagonal: the default of :func:`ipfit.zeroset.quality.quality` and the least
+#: default distance of :func:`ipfit.zeroset.trim.trim_zero_set`.
 DEFAULT_TAU_FRACTION = 0.02
 #: Cap on the samples of one shape (the spacing grows beyond it).
 DEFAULT_MAX_SAMPLES = 2_000_000
@@ -134,7 +134,7 @@ _LEAF_SIZE = 64
 
 def query_workers(n_queries: int) -> int:
     """k-d tree worker threads for a call of ``n_queries`` queries."""
-    from .objective import default_threads
+    from .._utils.threads import default_threads
 
     return default_threads() if n_queries >= _THREADED_QUERIES else 1
 

@@ -11,7 +11,7 @@ This module owns everything computed from a triangle mesh's vertices and faces:
 Every cross product is taken on coordinates rescaled by a power of two, so meshes with
 coordinates near 1e308 or 1e-300 give the same normals as unit-sized ones. Rows without a
 direction (degenerate triangles, vertices in no face) are zero, as everywhere in ipfit
-(:mod:`ipfit._numeric`).
+(:mod:`ipfit._utils.numeric`).
 
 Winding numbers
 ---------------
@@ -37,8 +37,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
-from .._numeric import unit_rows_mask
-from .._validation import as_faces, as_points, check_positive, error
+from .._utils.numeric import unit_rows_mask
+from .._utils.validation import as_faces, as_points, check_positive, error
 
 __all__ = ["Merged", "merge_duplicates", "face_normals", "vertex_normals_from_faces", "fill_missing_normals",
            "winding_number", "outward_vertices", "DEFAULT_STEP_FRACTION"]

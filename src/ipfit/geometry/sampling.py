@@ -15,8 +15,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ._validation import check_int, check_rng
-from .cloud import Cloud, as_cloud
+from .._utils.validation import check_int, check_rng
+from ..cloud import Cloud, as_cloud
 
 __all__ = ["spread_subsample", "point_spacing"]
 

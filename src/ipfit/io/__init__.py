@@ -7,23 +7,15 @@ The package, one concern per module:
 - :mod:`~ipfit.io.meshfiles`, :mod:`~ipfit.io.tables`, :mod:`~ipfit.io.scanners`: the format
   readers (PLY/OBJ/OFF/STL/glTF; text and NumPy tables; LAS/LAZ, PCD, E57);
 - :mod:`~ipfit.io.silhouettes`: tracing the outline of a shape in an image;
-- :mod:`~ipfit.io.writers`: :func:`write_points`;
-- :mod:`~ipfit.io.mesh`: mesh geometry (merging split vertices, face and area-weighted vertex
-  normals, winding numbers: inside and outside of a mesh's solid).
+- :mod:`~ipfit.io.writers`: :func:`write_points`.
+
+File formats only: the geometry of the meshes read (merging split vertices, face and vertex
+normals, winding numbers) is :mod:`ipfit.geometry.mesh`.
 
 Every failure to read is a :class:`~ipfit.exceptions.ReadError` whose one-line message starts
 with the file's path.
 """
 
-from .mesh import (
-    Merged,
-    face_normals,
-    fill_missing_normals,
-    merge_duplicates,
-    outward_vertices,
-    vertex_normals_from_faces,
-    winding_number,
-)
 from .readers import FORMATS, READ_FORMATS, Format, Mesh, PointCloud, read_mesh, read_points
 from .silhouettes import CONTOUR_SPAN, IMAGE_SUFFIXES, trace_silhouette
 from .writers import WRITE_FORMATS, write_points
@@ -31,17 +23,10 @@ from .writers import WRITE_FORMATS, write_points
 __all__ = [
     "PointCloud",
     "Mesh",
-    "Merged",
     "Format",
     "read_points",
     "read_mesh",
     "write_points",
-    "merge_duplicates",
-    "face_normals",
-    "vertex_normals_from_faces",
-    "fill_missing_normals",
-    "winding_number",
-    "outward_vertices",
     "trace_silhouette",
     "FORMATS",
     "READ_FORMATS",

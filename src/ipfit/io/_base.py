@@ -12,7 +12,7 @@ from typing import NamedTuple
 
 from numpy.typing import NDArray
 
-from .._optional import install_line
+from .._utils.optional import install_line
 from ..exceptions import InvalidInputError, ReadError
 
 #: Fewer points than this make no point cloud.

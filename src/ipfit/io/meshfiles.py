@@ -283,7 +283,7 @@ def _checked_resolver(path: Path):
 
     from trimesh.resolvers import FilePathResolver
 
-    from .._atomic import special_kind
+    from .._utils.atomic import special_kind
 
     class Resolver(FilePathResolver):
         def get(self, name: str):

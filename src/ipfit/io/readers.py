@@ -25,12 +25,12 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from .._atomic import special_kind
-from .._numeric import unit_rows_mask
-from .._validation import check_int, check_rng
+from .._utils.atomic import special_kind
+from .._utils.numeric import unit_rows_mask
+from .._utils.validation import check_int, check_rng
 from ..exceptions import NormalsDroppedWarning, ReadError
+from ..geometry.mesh import fill_missing_normals, merge_duplicates, vertex_normals_from_faces
 from ._base import MIN_POINTS, Raw, as_path, short
-from .mesh import fill_missing_normals, merge_duplicates, vertex_normals_from_faces
 from .meshfiles import read_obj, read_off, read_ply, read_scene, read_stl
 from .scanners import read_e57, read_las, read_pcd
 from .silhouettes import IMAGE_SUFFIXES, read_image
@@ -150,7 +150,7 @@ def read_points(path: str | os.PathLike, *, merge: bool = True, face_normals: bo
         Merge points at exactly the same position, averaging their normals.
     face_normals : bool
         For meshes without vertex normals, give area-weighted normals from the faces
-        (:func:`~ipfit.io.vertex_normals_from_faces`); vertices in no face take their nearest
+        (:func:`~ipfit.geometry.mesh.vertex_normals_from_faces`); vertices in no face take their nearest
         neighbour's. If False such files give ``normals=None``.
     max_points : int, optional
         Keep at most this many points, drawn at random without replacement (file order kept).

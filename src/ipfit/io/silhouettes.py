@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._validation import error
+from .._utils.validation import error
 from ..exceptions import InvalidInputError, ReadError
 from ..normals import contour_normals
 from ._base import MIN_POINTS, Raw, short

@@ -1,6 +1,6 @@
 """Writing point clouds (points and normals): PLY, OBJ, OFF/NOFF, CSV, XYZ/TXT, NPY, NPZ.
 
-Every file is written atomically (:mod:`ipfit._atomic`): a reader never sees half a file and
+Every file is written atomically (:mod:`ipfit._utils.atomic`): a reader never sees half a file and
 a failed write leaves the old file in place. 2D points written to the 3D-only formats (PLY,
 OBJ, OFF) get z = 0 and a comment, so that :func:`ipfit.io.read_points` gives them back as 2D.
 """
@@ -14,8 +14,8 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._atomic import atomic_path, write_text_atomic
-from .._validation import as_points, error
+from .._utils.atomic import atomic_path, write_text_atomic
+from .._utils.validation import as_points, error
 from ..exceptions import InvalidInputError
 from ._base import IPFIT_2D, as_path
 

@@ -7,8 +7,8 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._numeric import unit_rows_mask
-from .._validation import error
+from .._utils.numeric import unit_rows_mask
+from .._utils.validation import error
 
 __all__ = ["Agreement", "normal_agreement"]
 

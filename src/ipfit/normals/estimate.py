@@ -11,8 +11,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
-from .._numeric import row_norms, unit_rows_mask
-from .._validation import as_points, check_int, error
+from .._utils.numeric import row_norms, unit_rows_mask
+from .._utils.validation import as_points, check_int, error
 from .local import blocks, check_flag, check_workers, covariances, default_k, neighbours, pca_normals, standardise
 from .orient import orient_graph
 from .scale import noise_scale, orient_coarse

@@ -11,8 +11,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
-from .._numeric import row_norms
-from .._validation import check_int, error
+from .._utils.numeric import row_norms
+from .._utils.validation import check_int, error
 
 # Default neighbourhood sizes (the point itself included). A contour is a curve: k points
 # reach about k/2 samples to each side. 6 (±2-3 samples) is enough to average the 45° steps of

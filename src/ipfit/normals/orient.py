@@ -15,8 +15,8 @@ from scipy.sparse import csgraph
 from scipy.sparse.linalg import cg, spsolve
 from scipy.spatial import ConvexHull, QhullError, cKDTree
 
-from .._numeric import unit_rows, unit_rows_mask
-from .._validation import as_matching, as_points, error
+from .._utils.numeric import unit_rows, unit_rows_mask
+from .._utils.validation import as_matching, as_points, error
 from .local import argmax_per_group, blocks, check_workers, default_k, neighbours, standardise
 
 __all__ = ["orient_normals"]

@@ -12,7 +12,7 @@ Each returns an :class:`OptimizeResult` (``x``, ``fun``, ``nit``, ``nfev``, ``su
 ``message``, ``history``, ...).
 """
 
-from .._numeric import unit_rows
+from .._utils.numeric import unit_rows
 from ._common import OptimizeResult, PopulationSolver
 from ._de import DifferentialEvolution
 from ._polish import polish

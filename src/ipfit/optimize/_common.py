@@ -10,8 +10,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._result import Result
-from .._validation import check_int, check_nonnegative, check_rng, error
+from .._utils.result import Result
+from .._utils.validation import check_int, check_nonnegative, check_rng, error
 
 __all__ = ["OptimizeResult", "PopulationSolver"]
 

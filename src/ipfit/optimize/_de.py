@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._validation import check_positive, check_probability, error
+from .._utils.validation import check_positive, check_probability, error
 from ._common import OptimizeResult, PopulationSolver
 
 __all__ = ["DifferentialEvolution", "distinct_indices", "trial_population", "select"]
@@ -99,7 +99,7 @@ class DifferentialEvolution(PopulationSolver):
         Call ``func(trial, bound)`` with each trial's parent value as its bound. Selection only
         needs to know whether a trial beats its parent, so ``func`` may return, for a trial
         worse than its bound, any value above the bound (a cheaper lower bound, as
-        :class:`~ipfit.objective.Objective` does); values at or below the bound must be exact.
+        :class:`~ipfit.fitting.objective.Objective` does); values at or below the bound must be exact.
         The run is then the same as with exact values. The initial population is evaluated
         with ``func(init)``.
 

@@ -10,7 +10,7 @@ import scipy.linalg
 import scipy.optimize
 from numpy.typing import ArrayLike, NDArray
 
-from .._validation import check_int, error
+from .._utils.validation import check_int, error
 from ._common import OptimizeResult
 
 __all__ = ["polish"]
@@ -24,7 +24,7 @@ def polish(fun_and_grad: Callable[[NDArray], tuple[float, NDArray]], x0: ArrayLi
     Parameters
     ----------
     fun_and_grad : callable
-        x (d,) → (value, gradient (d,)), e.g. :meth:`ipfit.objective.Objective.value_and_grad`.
+        x (d,) → (value, gradient (d,)), e.g. :meth:`ipfit.fitting.objective.Objective.value_and_grad`.
     x0 : (d,) array
         Starting point (the best member of a metaheuristic, or a linear fit).
     maxiter : int, default 300

@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._validation import check_positive, error
+from .._utils.validation import check_positive, error
 from ._common import OptimizeResult, PopulationSolver
 
 __all__ = ["ParticleSwarm", "velocity_update"]

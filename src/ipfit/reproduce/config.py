@@ -19,7 +19,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 
-from .._validation import check_choice, error
+from .._utils.validation import check_choice, error
 
 __all__ = ["Config", "CONFIGS", "DEFAULT_CONFIG", "EXPERIMENTS", "DATASETS", "METHODS", "PAPER_DEGREES",
            "PATH_EPSILON", "get_config", "eps_key", "selected_degree"]

@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
-from .._numeric import unit_rows
+from .._utils.numeric import unit_rows
 from ..datasets import dataset_faces, load_dataset
 from ..normals import DEFAULT_K, contour_normals, estimate_normals
 from .config import Config

@@ -22,8 +22,8 @@ from typing import Any
 import numpy as np
 
 from .. import __version__
-from .._atomic import write_text_atomic
-from .._validation import check_int, error
+from .._utils.atomic import write_text_atomic
+from .._utils.validation import check_int, error
 from ..exceptions import InvalidInputError
 from ..polynomial import to_jsonable
 from .config import DEFAULT_CONFIG, EXPERIMENTS, Config, get_config

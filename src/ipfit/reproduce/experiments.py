@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from ..adaptive import select_degree
+from ..degree.adaptive import select_degree
 from .config import METHODS, eps_key, selected_degree
 from .data import Data, Workspace, rng_for, with_noise
 from .formatting import fmt

@@ -16,10 +16,10 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from .._atomic import atomic_path
+from .._utils.atomic import atomic_path
 from ..exceptions import IpfitError
-from ..plotting import METHOD_TITLES, plot_curve, plot_points, plot_result, plot_surface
-from ..zeroset import data_bounds
+from ..viz.plotting import METHOD_TITLES, plot_curve, plot_points, plot_result, plot_surface
+from ..zeroset.extract import data_bounds
 from .config import METHODS, Config, eps_key
 from .data import Workspace
 from .formatting import fmt

@@ -16,13 +16,13 @@ from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
 from .. import basis
-from .._numeric import unit_rows
+from .._utils.numeric import unit_rows
 from ..exceptions import IpfitError
-from ..linear import DEFAULT_OFFSET, ridge_penalty
-from ..objective import measures
+from ..fitting.linear import DEFAULT_OFFSET, ridge_penalty
+from ..fitting.objective import measures
 from ..polynomial import Normalization
-from ..quality import quality
-from ..zeroset import extract_zero_set
+from ..zeroset.extract import extract_zero_set
+from ..zeroset.quality import quality
 from .config import Config
 from .data import Data
 
@@ -62,7 +62,7 @@ def _improvement(start: float, final: float) -> float | None:
 
 
 def refine_summary(result) -> dict:
-    """Iterations, evaluations, best start fit and improvement of a :class:`~ipfit.refine.RefineResult`."""
+    """Iterations, evaluations, best start fit and improvement of a :class:`~ipfit.fitting.refine.RefineResult`."""
     seed = float(result.best_start_value)
     return {"nit": int(result.nit), "nfev": int(result.nfev), "best_seed": result.best_start,
             "best_seed_distance": seed, "refine_seconds": float(result.seconds),
@@ -128,7 +128,7 @@ def ridge_scale(data: Data, degree: int) -> dict:
     """How heavy κ·D is against the 3L system: the ratios D_αα / (AᵀA)_αα over the coefficients α.
 
     A is the 3L design matrix (points and their ±c offsets along the normals, normalised
-    coordinates, c = ipfit's default offset) and D :func:`~ipfit.linear.ridge_penalty`.
+    coordinates, c = ipfit's default offset) and D :func:`~ipfit.fitting.linear.ridge_penalty`.
     κ times these ratios is the ridge weight relative to the data, per coefficient.
     """
     u = Normalization.from_points(data.points).apply(data.points)

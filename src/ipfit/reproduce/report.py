@@ -10,7 +10,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from ..plotting import METHOD_TITLES
+from ..viz.plotting import METHOD_TITLES
 from .config import DEFAULT_CONFIG, EXPERIMENTS, PAPER_DEGREES, PATH_EPSILON
 from .data import NOISE_RADIUS
 from .formatting import fmt, pct, sig
@@ -88,7 +88,8 @@ def _settings_section(results: Mapping) -> list[str]:
                            "minimising the paper's distance (Eq. 5; no far-field term)")),
         ("degree rule", "Algorithm 1 (`rule='paper'`)"),
         ("seeds", "linear fits " + (", ".join(f"'{x}'" for x in cfg["seeds"]) + " (the paper's: classic and 3L)"
-                                    if cfg["seeds"] else "from ipfit's default pool (`ipfit.refine.DEFAULT_SEEDS`)")
+                                    if cfg["seeds"]
+                                    else "from ipfit's default pool (`ipfit.fitting.options.DEFAULT_START_FITS`)")
                   + " in N/10 of the population (paper)"),
         ("iterations", f"{cfg['iterations']} (paper: 500)"),
         ("population", "4 × number of coefficients (paper)" if cfg["population"] is None else cfg["population"]),
@@ -163,7 +164,7 @@ def _adaptive_section(results: Mapping, figures: Mapping) -> list[str]:
     lines = ["## 2. Adaptive fitting (Figs. 8–13)", "",
              f"Each dataset is run once per method with ε = {PATH_EPSILON:g}, below any possible smoothness change, "
              "so Algorithm 1 fits every even degree up to the maximum; the stopping rule "
-             "(`ipfit.adaptive.select_degree`) is then applied to that one smoothness path for ε = "
+             "(`ipfit.degree.adaptive.select_degree`) is then applied to that one smoothness path for ε = "
              + " and ε = ".join(f"{e:g}" for e in cfg["epsilons"])
              + ". The degree it returns is the one Algorithm 1 would stop at with that ε. "
              "*improvement* = how much lower the refined distance is than the best linear seed's.", ""]

@@ -1,7 +1,7 @@
 """Every fit a reproduction run makes: the only module that calls the library's fitting functions.
 
-The experiments ask for fits here and never call :func:`~ipfit.refine.refine`,
-:func:`~ipfit.adaptive.fit_adaptive` or :func:`~ipfit.linear.fit_linear` themselves, so a change
+The experiments ask for fits here and never call :func:`~ipfit.fitting.refine.refine`,
+:func:`~ipfit.degree.adaptive.fit_adaptive` or :func:`~ipfit.fitting.linear.fit_linear` themselves, so a change
 to those functions' signatures is adapted in this one file. :func:`search_options` turns a
 :class:`~ipfit.reproduce.config.Config` into the search settings every refinement of the run
 shares (the paper's objective: no far-field term).
@@ -20,12 +20,12 @@ from typing import Any
 
 import numpy as np
 
-from ..adaptive import AdaptiveResult, fit_adaptive
+from ..degree.adaptive import AdaptiveResult, fit_adaptive
 from ..exceptions import ConditioningWarning
-from ..linear import fit_linear
-from ..options import RECOMMENDED, SearchOptions
+from ..fitting.linear import fit_linear
+from ..fitting.options import RECOMMENDED, SearchOptions
+from ..fitting.refine import RefineResult, refine
 from ..polynomial import ImplicitPolynomial
-from ..refine import RefineResult, refine
 from .config import PATH_EPSILON, Config
 from .data import Data
 
@@ -33,7 +33,7 @@ __all__ = ["search_options", "refine_fit", "polish_fit", "adaptive_fit", "linear
 
 
 #: The reproduction's polish runs its full 1,000 L-BFGS iterations in 2D as in 3D (the
-#: recommended pipeline's 2D default is shorter: ipfit.options.AUTO).
+#: recommended pipeline's 2D default is shorter: ipfit.fitting.options.AUTO).
 POLISH_ITERATIONS = 1000
 
 
@@ -64,9 +64,9 @@ def polish_fit(data: Data, degree: int, cfg: Config, start: ImplicitPolynomial |
 
 
 class _Recorder:
-    """A fixed-degree method for :func:`~ipfit.adaptive.fit_adaptive` that keeps every RefineResult.
+    """A fixed-degree method for :func:`~ipfit.degree.adaptive.fit_adaptive` that keeps every RefineResult.
 
-    It calls :func:`~ipfit.refine.refine` with the same generator for every degree, as
+    It calls :func:`~ipfit.fitting.refine.refine` with the same generator for every degree, as
     ``fit_adaptive(method=...)`` does, so the run is the library's adaptive run; keeping the
     results gives the start fits' distances and the convergence histories.
     """

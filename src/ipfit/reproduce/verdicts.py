@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from ..plotting import METHOD_TITLES
+from ..viz.plotting import METHOD_TITLES
 from .config import METHODS, PAPER_DEGREES, eps_key, selected_degree
 from .formatting import fmt
 

@@ -5,7 +5,7 @@ makes a new figure through pyplot (on the Agg backend when there is no display).
 :func:`plot_result` builds a whole multi-panel figure (the zero set of every degree tried
 with the data, the smoothness-versus-degree curve, the classic and 3L fits at the selected
 degree) without touching pyplot's global state, and can save it atomically. Pieces of a
-zero set with no data near them (spurious components, see :mod:`ipfit.quality`) are drawn
+zero set with no data near them (spurious components, see :mod:`ipfit.zeroset.quality`) are drawn
 in :data:`SPURIOUS_COLOR`.
 
 matplotlib is imported only when a function here is called.
@@ -23,11 +23,11 @@ from typing import Any, cast
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ._validation import as_faces, as_points, check_choice, check_int, error
-from .polynomial import ImplicitPolynomial
-from .quality import looks_like_contour, spurious_components
-from .results import ResultView, result_view
-from .zeroset import ZeroSet, data_bounds, default_bounds, extract_zero_set
+from .._utils.validation import as_faces, as_points, check_choice, check_int, error
+from ..degree.results import ResultView, result_view
+from ..polynomial import ImplicitPolynomial
+from ..zeroset.extract import ZeroSet, data_bounds, default_bounds, extract_zero_set
+from ..zeroset.quality import looks_like_contour, spurious_components
 
 __all__ = [
     "plot_curve",
@@ -116,7 +116,7 @@ def _check_dpi(dpi: Any, size_inches: Sequence[float]) -> int:
 
 def save_figure(fig, path: str | os.PathLike, dpi: int = 110) -> None:
     """Save a matplotlib figure atomically; the format follows the extension (:data:`FIGURE_FORMATS`)."""
-    from ._atomic import atomic_path
+    from .._utils.atomic import atomic_path
 
     path = check_figure_path(path)
     dpi = _check_dpi(dpi, fig.get_size_inches())
@@ -141,7 +141,7 @@ def _spurious_flags(spurious, zs: ZeroSet) -> NDArray[np.bool_]:
     flags = np.asarray(spurious, dtype=bool).ravel()
     if flags.shape != (zs.n_components,):
         raise error("spurious", f"{zs.n_components} flags, one per zero-set component", f"{flags.size} flags",
-                    "Use ipfit.quality.spurious_components(zero_set, points).")
+                    "Use ipfit.zeroset.quality.spurious_components(zero_set, points).")
     return flags
 
 
@@ -232,9 +232,9 @@ def plot_curve(poly: ImplicitPolynomial | None, points: ArrayLike | None = None,
     poly : 2D polynomial (may be None when ``zero_set`` is given).
     points : data points to draw underneath, and to choose the box from.
     zero_set : an already extracted zero set to draw instead of extracting one.
-    bounds, margin, resolution : see :func:`ipfit.zeroset.extract_zero_set`.
+    bounds, margin, resolution : see :func:`ipfit.zeroset.extract.extract_zero_set`.
     spurious : one flag per curve of the zero set; flagged curves are drawn in
-        ``spurious_color`` (see :func:`ipfit.quality.spurious_components`).
+        ``spurious_color`` (see :func:`ipfit.zeroset.quality.spurious_components`).
     """
     pts = None if points is None else as_points(points, dims=(2,))
     zs = _zero_set_for(poly, zero_set, pts, bounds, margin, resolution)
@@ -431,13 +431,13 @@ def plot_result(result, points: ArrayLike | None = None, path: str | os.PathLike
     smoothness against the degree; the comparison fits (classic linear, 3L) when the
     result holds them. A result of one degree (a fixed-degree fit or a plain polynomial)
     gives one panel for that degree, titled with its measures. With ``points``, spurious
-    components (no data within τ, as counted by :func:`ipfit.quality.quality`) are drawn
+    components (no data within τ, as counted by :func:`ipfit.zeroset.quality.quality`) are drawn
     in :data:`SPURIOUS_COLOR`.
 
     Parameters
     ----------
     result : path to a result JSON, a dict, or an ImplicitPolynomial (see
-        :func:`ipfit.results.load_result`).
+        :func:`ipfit.degree.results.load_result`).
     points : the data (drawn with the zero sets; its box frames every panel).
     path : where to save the figure (atomically; format by extension, :data:`FIGURE_FORMATS`).
     faces : triangles over ``points`` when the data is a mesh: the faces are sampled for
@@ -446,7 +446,7 @@ def plot_result(result, points: ArrayLike | None = None, path: str | os.PathLike
     view, up : 3D camera (elevation, azimuth) and vertical axis, see :func:`plot_surface`.
     mark_spurious : colour the spurious components (needs ``points``).
     trim : draw only the parts of each zero set within this distance of the data
-        (:meth:`ipfit.zeroset.ZeroSet.trimmed`, as ``ipfit fit --trim`` exports them; needs
+        (:meth:`ipfit.zeroset.extract.ZeroSet.trimmed`, as ``ipfit fit --trim`` exports them; needs
         ``points``); the polynomial is unchanged.
 
     Returns

@@ -1,6 +1,6 @@
 """Write extracted zero sets: meshes as PLY, OBJ or STL (trimesh), curves as SVG or CSV.
 
-Every writer goes through :func:`ipfit._atomic.atomic_path`: a reader never sees half a file.
+Every writer goes through :func:`ipfit._utils.atomic.atomic_path`: a reader never sees half a file.
 """
 
 from __future__ import annotations
@@ -10,8 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ._atomic import atomic_path, write_text_atomic
-from .exceptions import InvalidInputError
+from .._utils.atomic import atomic_path, write_text_atomic
+from ..exceptions import InvalidInputError
 
 __all__ = ["MESH_FORMATS", "CURVE_FORMATS", "save_zero_set", "write_mesh", "write_curves_svg", "write_curves_csv"]
 
@@ -88,7 +88,7 @@ def write_curves_csv(path: str | os.PathLike, curves) -> None:
 
 
 def save_zero_set(zero_set, path: str | os.PathLike) -> None:
-    """Write a :class:`ipfit.zeroset.ZeroSet` to ``path``, choosing the format by extension."""
+    """Write a :class:`ipfit.zeroset.extract.ZeroSet` to ``path``, choosing the format by extension."""
     path = Path(path)
     suffix = path.suffix.lower()
     if zero_set.dim == 3:

@@ -25,10 +25,10 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from . import basis
-from ._distance import Samples, sample_segments, sample_triangles
-from ._validation import as_points, check_int, check_nonnegative, error
-from .polynomial import ImplicitPolynomial
+from .. import basis
+from .._utils.validation import as_points, check_int, check_nonnegative, error
+from ..geometry.distance import Samples, sample_segments, sample_triangles
+from ..polynomial import ImplicitPolynomial
 
 if TYPE_CHECKING:
     from .trim import Trim
@@ -172,7 +172,7 @@ class ZeroSet:
     reaches_boundary : whether f changes sign (or vanishes) on the box's boundary, i.e.
         the zero set leaves the box.
     polynomial : the polynomial it was extracted from, if known.
-    trim : a :class:`ipfit.trim.Trim` record when this is a trimmed zero set
+    trim : a :class:`ipfit.zeroset.trim.Trim` record when this is a trimmed zero set
         (:meth:`trimmed`), else None.
     """
 
@@ -310,7 +310,7 @@ class ZeroSet:
 
     def trimmed(self, points: ArrayLike, distance: float | None = None, *, faces: ArrayLike | None = None) -> ZeroSet:
         """The parts within ``distance`` of the data ``points`` (and their ``faces``), as a new
-        zero set whose ``trim`` records what went; see :func:`ipfit.trim.trim_zero_set`."""
+        zero set whose ``trim`` records what went; see :func:`ipfit.zeroset.trim.trim_zero_set`."""
         from .trim import trim_zero_set
 
         return trim_zero_set(self, points, distance, faces=faces)

@@ -46,7 +46,9 @@ from typing import Any, cast
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ._distance import (
+from .._utils.validation import check_int, check_positive, error
+from ..cloud import Cloud, as_cloud
+from ..geometry.distance import (
     DEFAULT_MAX_SAMPLES,
     DEFAULT_TAU_FRACTION,
     Samples,
@@ -55,17 +57,15 @@ from ._distance import (
     mesh_target,
     query_workers,
 )
-from ._validation import check_int, check_positive, error
-from .cloud import Cloud, as_cloud
-from .polynomial import ImplicitPolynomial
-from .zeroset import ZeroSet, extract_zero_set
+from ..polynomial import ImplicitPolynomial
+from .extract import ZeroSet, extract_zero_set
 
 __all__ = ["Quality", "quality", "spurious_components", "stray_samples", "looks_like_contour", "DEFAULT_TAU_FRACTION"]
 
 
 @dataclass(frozen=True)
 class Quality:
-    """Geometric quality measures of one fit; see :mod:`ipfit.quality`.
+    """Geometric quality measures of one fit; see :mod:`ipfit.zeroset.quality`.
 
     Attributes
     ----------
@@ -164,7 +164,7 @@ def quality(model: ImplicitPolynomial | ZeroSet, points: ArrayLike | Cloud, *, f
     ----------
     model : ImplicitPolynomial or ZeroSet
         A polynomial (its zero set is extracted over the data's box grown by ``margin``,
-        or over ``bounds``) or an already extracted :class:`~ipfit.zeroset.ZeroSet`.
+        or over ``bounds``) or an already extracted :class:`~ipfit.zeroset.extract.ZeroSet`.
     points : (N, dim) data points, or a :class:`~ipfit.Cloud`: then its faces are used, and
         it keeps the data's side of the measurement and the last few measurements (measuring
         the same polynomial on it again computes nothing).
@@ -175,7 +175,7 @@ def quality(model: ImplicitPolynomial | ZeroSet, points: ArrayLike | Cloud, *, f
         2D: the points are in order along a contour (closed unless the last gap is far
         longer than the others); precision is measured against the polyline.
     tau : tolerance in user units; default ``tau_fraction`` × the data's box diagonal.
-    bounds, margin, resolution : passed to :func:`ipfit.zeroset.extract_zero_set`.
+    bounds, margin, resolution : passed to :func:`ipfit.zeroset.extract.extract_zero_set`.
     spacing : sample spacing of the zero set and of the data's shape; default τ. The
         samples weigh the zero set for precision (every element keeps at least one) and
         find the candidate segments or faces for the distances, which are then computed

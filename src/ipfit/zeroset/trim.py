@@ -32,9 +32,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ._distance import DEFAULT_MAX_SAMPLES, DEFAULT_TAU_FRACTION, data_target
-from ._validation import as_faces, as_points, check_positive, error
-from .zeroset import ZeroSet
+from .._utils.validation import as_faces, as_points, check_positive, error
+from ..geometry.distance import DEFAULT_MAX_SAMPLES, DEFAULT_TAU_FRACTION, data_target
+from .extract import ZeroSet
 
 __all__ = ["Trim", "trim_zero_set", "default_trim_distance", "DEFAULT_TRIM_SPACINGS"]
 
@@ -70,7 +70,7 @@ class Trim:
 
 
 def _spacing(pts: NDArray) -> float:
-    from .sampling import point_spacing
+    from ..geometry.sampling import point_spacing
 
     nearest = point_spacing(pts)
     nearest = nearest[nearest > 0]  # repeated points say nothing about the sampling density
@@ -87,8 +87,8 @@ def default_trim_distance(points: ArrayLike) -> float:
     the widest empty patch has a radius of about sqrt(ln n / ln 2) median spacings (3.3 for
     2 000 points, 4.1 for 100 000), and scanned data is more regular than that, so
     ``DEFAULT_TRIM_SPACINGS`` (5) spacings keep the surface between samples. τ is
-    :data:`ipfit.quality.DEFAULT_TAU_FRACTION` (2 %) of the data's box diagonal, the
-    tolerance within which :func:`ipfit.quality.quality` counts the zero set as on the data:
+    :data:`ipfit.zeroset.quality.DEFAULT_TAU_FRACTION` (2 %) of the data's box diagonal, the
+    tolerance within which :func:`ipfit.zeroset.quality.quality` counts the zero set as on the data:
     on dense data a good fit deviates by more than a few spacings, and a default that cut
     what the quality measures call precise would punch holes in it. Surface over a real
     opening (a missing lid, a cut base) is farther than this from every point except for a

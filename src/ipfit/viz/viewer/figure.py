@@ -1,4 +1,4 @@
-"""The interactive plotly figure of a result; see :mod:`ipfit.viewer`."""
+"""The interactive plotly figure of a result; see :mod:`ipfit.viz.viewer`."""
 
 from __future__ import annotations
 
@@ -11,11 +11,11 @@ from typing import Any, NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._validation import as_normals, as_points, check_choice, check_int, check_positive, error
-from ..exceptions import IpfitError
-from ..polynomial import ImplicitPolynomial
-from ..results import load_result, result_view
-from ..zeroset import ZeroSet, data_bounds, default_bounds, extract_zero_set
+from ..._utils.validation import as_normals, as_points, check_choice, check_int, check_positive, error
+from ...degree.results import load_result, result_view
+from ...exceptions import IpfitError
+from ...polynomial import ImplicitPolynomial
+from ...zeroset.extract import ZeroSet, data_bounds, default_bounds, extract_zero_set
 from .geometry import decimate, spurious_flags
 
 __all__ = ["result_figure"]
@@ -241,7 +241,7 @@ def result_figure(result, points: ArrayLike | None = None, *, faces: ArrayLike |
     max_points : data points drawn (every k-th beyond).
     up : 3D: the axis pointing up on screen ('x', 'y' or 'z'; the bunny is y-up).
     trim : draw only the parts of each zero set within this distance of the data
-        (:meth:`ipfit.zeroset.ZeroSet.trimmed`, as ``ipfit fit --trim`` exports them; needs
+        (:meth:`ipfit.zeroset.extract.ZeroSet.trimmed`, as ``ipfit fit --trim`` exports them; needs
         ``points``); the polynomial is unchanged.
     """
     go = _plotly()
@@ -262,7 +262,7 @@ def result_figure(result, points: ArrayLike | None = None, *, faces: ArrayLike |
     else:
         box = default_bounds(fits[0].polynomial, margin)
     if pts is not None and ordered_contour is None:
-        from ..quality import looks_like_contour
+        from ...zeroset.quality import looks_like_contour
 
         ordered_contour = dim == 2 and looks_like_contour(pts)
     current = next((i for i, f in enumerate(fits) if f.degree == selected), len(fits) - 1)

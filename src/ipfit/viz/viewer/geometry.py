@@ -7,8 +7,8 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._validation import check_int
-from ..zeroset import ZeroSet
+from ..._utils.validation import check_int
+from ...zeroset.extract import ZeroSet
 
 __all__ = ["decimate", "spurious_flags"]
 
@@ -64,7 +64,7 @@ def spurious_flags(zero_set: ZeroSet, points: ArrayLike, *, faces: ArrayLike | N
     ``n_spurious`` (the count a result already records) skips the work when it decides the
     answer: 0, or every component.
     """
-    from ..quality import quality
+    from ...zeroset.quality import quality
 
     n = zero_set.n_components
     if n_spurious is not None and n_spurious in (0, n):

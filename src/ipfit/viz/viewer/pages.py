@@ -8,7 +8,7 @@ from pathlib import Path
 
 from numpy.typing import ArrayLike
 
-from .._validation import error
+from ..._utils.validation import error
 from .figure import result_figure
 
 __all__ = ["page", "to_html", "write_html", "index_page"]
@@ -39,7 +39,7 @@ def to_html(result, points: ArrayLike | None = None, *, full_html: bool = True, 
 
 def write_html(result, points: ArrayLike | None, path: str | os.PathLike, **kwargs) -> None:
     """Write the viewer page of ``result`` to ``path`` atomically (see :func:`result_figure`)."""
-    from .._atomic import write_text_atomic
+    from ..._utils.atomic import write_text_atomic
 
     # Checked before the figure is built: a big result takes seconds to draw.
     if not str(path).lower().endswith((".html", ".htm")):
