@@ -52,10 +52,10 @@ def _sequential_costs(shapes, settings) -> list[float]:
 
 
 def _warm() -> None:
-    import ipfit.adaptive
-    import ipfit.quality
+    import ipfit.degree.adaptive
+    import ipfit.zeroset.quality
 
-    assert ipfit.adaptive and ipfit.quality
+    assert ipfit.degree.adaptive and ipfit.quality
 
 
 def _batch_wall(shapes, workers: int, settings) -> tuple[float, float, float]:
@@ -102,7 +102,7 @@ def _write_cloud(folder: Path, n_total: int) -> None:
 
 def _child(folder: str, n: int, compare: bool) -> None:
     """In a fresh process: fit the first n points of the cloud; print time and peak memory."""
-    from ipfit.chunked import fit_chunked, open_cloud
+    from ipfit.fitting.chunked import fit_chunked, open_cloud
 
     points, normals = open_cloud(folder)
     points, normals = points[:n], normals[:n]
@@ -205,7 +205,7 @@ def render(batch: dict, chunked: list[dict]) -> str:
         "## Chunked-cloud fits (`ipfit.fit_chunked`)",
         "",
         "A torus (R = 2, r = 0.7, noise 0.005 along the normal), stored as chunk files of 1 million "
-        "points (`points-*.npy`, `normals-*.npy`, read chunk by chunk by `ipfit.chunked.open_cloud`), fitted "
+        "points (`points-*.npy`, `normals-*.npy`, read chunk by chunk by `ipfit.fitting.chunked.open_cloud`), fitted "
         "by 3L at degree 4 (35 coefficients, 3N rows) with Dask's threaded scheduler, each size in a "
         "fresh process. Peak memory is the process's peak resident set (`ru_maxrss`), Python and "
         "the libraries included.",

@@ -3,11 +3,11 @@
 For every bundled dataset at its usual degrees (2D: 6 and 10; 3D: 6 and 8), in normalised
 coordinates, with a population of P = 4d members around the 3L fit:
 
-* ``N`` data points, ``M`` far-field samples (:func:`ipfit.farfield.term_samples`) and, for
+* ``N`` data points, ``M`` far-field samples (:func:`ipfit.fitting.farfield.term_samples`) and, for
   comparison, ``M before``: the grid the term used before (64 nodes per side in 2D, 14 in 3D);
 * ``data ms``: one evaluation of the paper's objective alone; ``with term ms``: the same
-  population with :class:`~ipfit.farfield.FarFieldTerm` (weight 0.1) in the same pass; both in
-  the precision the recommended search uses (``ipfit.options.AUTO``: float32 in 3D);
+  population with :class:`~ipfit.fitting.farfield.FarFieldTerm` (weight 0.1) in the same pass; both in
+  the precision the recommended search uses (``ipfit.fitting.options.AUTO``: float32 in 3D);
 * ``term share``: (with term − data) / with term, the term's share of one full evaluation
   of the population;
 * ``DE share`` (clouds up to 10,000 points): the term's share of a whole search run the way
@@ -55,7 +55,7 @@ def interleaved(fns, budget: float, min_repeat: int = 5, max_repeat: int = 30) -
 def search_share(plain, fused, start, r_inv, stall: int) -> tuple[int, float, float, float]:
     """(generations, contenders, far-field share of the search time, search seconds) of one
     screened DE run."""
-    from ipfit.objective import single_threaded_blas
+    from ipfit.fitting.objective import single_threaded_blas
     from ipfit.optimize import DifferentialEvolution, unit_rows
 
     record = []
@@ -105,9 +105,9 @@ def main() -> None:
     args = parser.parse_args()
 
     import ipfit
-    from ipfit.farfield import DEFAULT_TERM_WEIGHT, FarFieldTerm, far_field_samples
-    from ipfit.objective import Objective, default_threads
-    from ipfit.options import AUTO
+    from ipfit.fitting.farfield import DEFAULT_TERM_WEIGHT, FarFieldTerm, far_field_samples
+    from ipfit.fitting.objective import Objective, default_threads
+    from ipfit.fitting.options import AUTO
     from ipfit.optimize import unit_rows
     from ipfit.polynomial import Normalization
 

@@ -8,7 +8,7 @@ Quality columns, against face-derived normals for the meshes (the issue's refere
 also against its file's normals) and normals from the ordered contour in 2D: the median angle
 between the normal lines and the fraction of points whose estimated normal points the other way;
 then, for meshes, the share of vertices whose face normal does not point out of the solid
-(:func:`ipfit.io.mesh.outward_vertices`: the mesh passes through itself there, as the duck's beak
+(:func:`ipfit.geometry.mesh.outward_vertices`: the mesh passes through itself there, as the duck's beak
 does, or is open, as the bunny's base is) and the flipped fraction over the others. The winding
 numbers this needs are skipped for meshes of over 20,000 vertices (minutes for the full bunny).
 
@@ -29,9 +29,9 @@ import tracemalloc
 import numpy as np
 
 from ipfit.datasets import bundled
-from ipfit.io import fill_missing_normals, vertex_normals_from_faces
+from ipfit.geometry.mesh import fill_missing_normals, vertex_normals_from_faces
 from ipfit.normals import DEFAULT_K, estimate_normals, normal_agreement
-from ipfit.io.mesh import outward_vertices
+from ipfit.geometry.mesh import outward_vertices
 
 MAX_WINDING_VERTICES = 20_000
 

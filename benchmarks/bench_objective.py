@@ -53,7 +53,7 @@ class Timed:
 
 def loop_overhead(solver_cls, obj, start, r_inv, generations, **kwargs) -> tuple[float, float]:
     """(seconds per generation, overhead fraction) of a solver run the way refine runs it."""
-    from ipfit.objective import single_threaded_blas
+    from ipfit.fitting.objective import single_threaded_blas
     from ipfit.optimize import unit_rows
 
     inner = Timed(obj)
@@ -94,7 +94,7 @@ def main() -> None:
 
     from ipfit import basis
     from ipfit.datasets import synthetic
-    from ipfit.objective import Objective, _controller, default_threads, single_threaded_blas
+    from ipfit.fitting.objective import Objective, _controller, default_threads, single_threaded_blas
     from ipfit.optimize import DifferentialEvolution, ParticleSwarm, unit_rows
     from ipfit.polynomial import Normalization
 

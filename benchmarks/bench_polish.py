@@ -1,6 +1,6 @@
 """Cost of one polish step: ``python benchmarks/bench_polish.py [--out docs/polish-cost.md]``.
 
-The L-BFGS polish calls :meth:`ipfit.objective.Objective.value_and_grad` once or twice per
+The L-BFGS polish calls :meth:`ipfit.fitting.objective.Objective.value_and_grad` once or twice per
 iteration, on the data plus the far-field term's samples, thousands of times per fit. For
 each bundled dataset at a degree the recommended pipeline reaches, on the rows the polish
 sees (the search's spread subsample, then all points, each with the term's samples):
@@ -46,7 +46,7 @@ def interleaved(fns, budget: float = 2.0, min_repeat: int = 5, max_repeat: int =
 def numpy_value_and_grad(obj, term, a):
     """The paper's objective plus the far-field term, value and gradient, in plain numpy."""
     from ipfit import basis
-    from ipfit.objective import TAUBIN_CAP
+    from ipfit.fitting.objective import TAUBIN_CAP
 
     tiny, floor = float(np.finfo(np.float64).tiny), 1e-100
     m = obj._design(0, obj.n_points, np.float64)
@@ -71,10 +71,10 @@ def numpy_value_and_grad(obj, term, a):
 def case(name: str, degree: int, n_points: int | None):
     from ipfit import RECOMMENDED, fit_3l
     from ipfit.datasets import bundled
-    from ipfit.farfield import FarFieldTerm
-    from ipfit.objective import Objective
+    from ipfit.fitting.farfield import FarFieldTerm
+    from ipfit.fitting.objective import Objective
     from ipfit.optimize import polish
-    from ipfit.sampling import spread_subsample
+    from ipfit.geometry.sampling import spread_subsample
 
     pts, nrm = bundled.load_dataset(name)
     if n_points is not None and len(pts) > n_points:

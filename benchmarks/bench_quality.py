@@ -1,4 +1,4 @@
-"""Old vs new :func:`ipfit.quality.quality`, in one run: ``python benchmarks/bench_quality.py``.
+"""Old vs new :func:`ipfit.zeroset.quality.quality`, in one run: ``python benchmarks/bench_quality.py``.
 
 For every bundled dataset given (default: apple and bunny_res3 in 3D, boot, airplane and
 butterfly in 2D), degree (default 4, 6, 8) and fit (``fit_3l``, ``fit_taubin`` and
@@ -109,7 +109,7 @@ class _OldTarget:
 
 def old_quality(zs, pts, faces=None, ordered_contour=False, tau_fraction=0.02, max_samples=2_000_000):
     """The previous ``quality`` on an extracted zero set: F, P, R, Chamfer, n_spurious, closed."""
-    from ipfit.zeroset import Samples, sample_segments, sample_triangles
+    from ipfit.zeroset.extract import Samples, sample_segments, sample_triangles
 
     tau = tau_fraction * float(np.linalg.norm(np.ptp(pts, axis=0)))
     spacing = tau / 3
@@ -183,8 +183,8 @@ def main() -> None:
 
     from ipfit import load
     from ipfit.datasets import synthetic
-    from ipfit.quality import looks_like_contour, quality
-    from ipfit.zeroset import extract_zero_set
+    from ipfit.zeroset.quality import looks_like_contour, quality
+    from ipfit.zeroset.extract import extract_zero_set
 
     warm = synthetic.sphere(200)
     quality(warm.polynomial, warm.points, resolution=24)  # compile or load the numba kernels

@@ -1,4 +1,4 @@
-"""The search budget per dimension: what ``ipfit.options.AUTO`` is measured on.
+"""The search budget per dimension: what ``ipfit.fitting.options.AUTO`` is measured on.
 
 Usage::
 
@@ -88,7 +88,7 @@ def markdown(rows: list[dict]) -> str:
         lines.append(f"* {dim}D, short against long: mean F-score difference {diff.mean():+.4f}, largest drop "
                      f"{diff.min():+.3f} ({worst['shape']}, degree {worst['degree']}, seed {worst['seed']}), "
                      f"time {ratio:.2f}×.")
-    lines += ["", "`ipfit.options.AUTO` uses the short budget in 2D, where the whole pipeline with it was measured "
+    lines += ["", "`ipfit.fitting.options.AUTO` uses the short budget in 2D, where the whole pipeline with it was measured "
               "over 143 contours (docs/degree-rule.md). In 3D it keeps the long polish (1,000 iterations) with the "
               "short stall (30 generations): these fixed-degree fits favour the short budget there too, but the "
               "whole pipeline with both short (AUTO's 3D values set to 30 and 300, then "

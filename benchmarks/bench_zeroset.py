@@ -37,8 +37,8 @@ def main() -> None:
 
     from ipfit import ImplicitPolynomial, Normalization, basis
     from ipfit.datasets import synthetic
-    from ipfit.quality import quality
-    from ipfit.zeroset import extract_zero_set, grid_axes, grid_values
+    from ipfit.zeroset.quality import quality
+    from ipfit.zeroset.extract import extract_zero_set, grid_axes, grid_values
 
     rng = np.random.default_rng(0)
     n, g = args.resolution, args.degree

@@ -72,7 +72,7 @@ def main() -> None:
     args = parser.parse_args()
 
     from ipfit import RECOMMENDED
-    from ipfit.refine import refine
+    from ipfit.fitting.refine import refine
 
     # The paper's objective (no far-field term) with the paper's DE/PSO parameters: every point,
     # every iteration (no subsampled search, no stall stop), in float64, started from every

@@ -62,9 +62,9 @@ def spurious_record(q) -> dict:
 
 
 def spurious_cell(row: dict) -> str:
-    """Spurious components beyond specks (:func:`ipfit.rules.is_speck`, judged by this checkout),
+    """Spurious components beyond specks (:func:`ipfit.degree.rules.is_speck`, judged by this checkout),
     and the specks in brackets."""
-    from ipfit.rules import is_speck
+    from ipfit.degree.rules import is_speck
 
     specks = sum(is_speck({**c, "center": [0.0] * c["dim"]}, row["tau"]) for c in row["spurious"])
     return f"{len(row['spurious']) - specks}" + (f" (+{specks} speck{'s' if specks > 1 else ''})" if specks else "")

@@ -1,9 +1,10 @@
-"""Write the layer diagram of docs/architecture.md from .importlinter's layers contract.
+"""Write the layer diagram of docs/architecture.md from .importlinter's layers contracts.
 
     python experiments/architecture.py [--check]
 
-The contract is what `lint-imports` (`make lint`, in .ci/run) checks against the real imports,
-so the page shows the layers the code has, top (the command line) to bottom (the leaves).
+The contracts are what `lint-imports` (`make lint`, in .ci/run) checks against the real imports,
+so the page shows the layers the code has, top (the command line) to bottom (the leaves): first
+the top level, where a subpackage is one unit, then the layers inside each subpackage.
 ``--check`` exits 1 when the page differs from what would be written (tests/test_imports.py
 runs it).
 """
@@ -18,18 +19,35 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 PAGE = ROOT / "docs" / "architecture.md"
 BEGIN, END = "<!-- layers: experiments/architecture.py -->", "<!-- /layers -->"
+PACKAGE = "ipfit"
 
 
-def layers() -> list[str]:
+def _lines(value: str) -> list[str]:
+    return [line.strip() for line in value.splitlines() if line.strip() and not line.strip().startswith("#")]
+
+
+def contracts() -> dict[str, list[list[str]]]:
+    """Container -> its layers, top first, each a list of module names (relative to the container)."""
     config = configparser.ConfigParser(inline_comment_prefixes=("#",))
     config.read(ROOT / ".importlinter", encoding="utf-8")
-    lines = config["importlinter:contract:layers"]["layers"].splitlines()
-    return [line.strip() for line in lines if line.strip() and not line.strip().startswith("#")]
+    out = {}
+    for section in config.sections():
+        if not section.startswith("importlinter:contract:") or config[section].get("type") != "layers":
+            continue
+        layers = [[name.strip() for name in layer.split("|")] for layer in _lines(config[section]["layers"])]
+        for container in _lines(config[section]["containers"]):
+            out[container] = layers
+    return out
 
 
 def block() -> str:
-    rows = [", ".join(name.strip() for name in layer.split("|")) for layer in layers()]
-    return "\n".join([BEGIN, "```", *rows, "```", END])
+    found = contracts()
+    top = [", ".join(layer) for layer in found.pop(PACKAGE)]
+    width = max(len(container) for container in found) - len(PACKAGE)
+    inner = [f"{container[len(PACKAGE) + 1:] + ':':{width}} " + " > ".join(", ".join(layer) for layer in layers)
+             for container, layers in found.items()]
+    return "\n".join([BEGIN, "The top level (a subpackage is one unit, with everything in it):", "", "```", *top, "```",
+                      "", "Inside each subpackage (top > ... > bottom):", "", "```", *inner, "```", END])
 
 
 def page() -> str:

@@ -7,14 +7,14 @@ Usage::
                                       [--out docs/degree-rule.md] [--from-json docs/degree-rule.json]
 
 For every contour it runs three pipelines and measures the selected degree's zero set with
-:func:`ipfit.quality.quality` (F-score, spurious components):
+:func:`ipfit.zeroset.quality.quality` (F-score, spurious components):
 
 * **paper**: the paper's exact pipeline (``ipfit fit --paper``: DE, Algorithm 1);
 * **geometric**: the recommended pipeline as it was before the capture rule (the paper's rule
   restricted to clean degrees, search on 3,000 points, degrees up to 10), run by the code of
   ``--before`` (a checkout of commit 69d992a);
 * **capture**: today's recommended pipeline (``ipfit fit``: the capture rule of
-  :mod:`ipfit.rules`, degrees up to 14).
+  :mod:`ipfit.degree.rules`, degrees up to 14).
 
 Two worker processes run side by side (``experiments/_versions.py``): one with the code of
 ``--before`` (the geometric pipeline), one with this checkout (the paper's and the capture
@@ -48,8 +48,7 @@ def _settings(pipeline: str):
 
 def fit_one(spec: str, pipeline: str, seed: int) -> dict:
     """One pipeline on one contour: selected degree, its quality and the fit's seconds."""
-    from ipfit import fit_adaptive
-    from ipfit.quality import quality
+    from ipfit import fit_adaptive, quality  # public names: the same in either checkout
 
     data = load_data(spec)
     start = time.perf_counter()
@@ -110,15 +109,15 @@ def markdown(rows: list[dict], seed: int) -> str:
         f"seed {seed}, two worker processes side by side with one thread each (the geometric pipeline in one, with "
         "the code of commit 69d992a; the paper's and the capture pipelines in the other). Shapes: the bundled contours (boot, airplane, butterfly) and the 140 "
         "MPEG-7 development contours (instances 5 and 15 of each class). F-score, spurious components and "
-        "closedness are measured by `ipfit.quality.quality` (τ = 2% of the box diagonal) at the selected degree; "
-        "spurious components are counted beyond *specks* (`ipfit.rules.is_speck`: shorter than τ/2 and within 2τ of "
+        "closedness are measured by `ipfit.zeroset.quality.quality` (τ = 2% of the box diagonal) at the selected degree; "
+        "spurious components are counted beyond *specks* (`ipfit.degree.rules.is_speck`: shorter than τ/2 and within 2τ of "
         "the data, fragments at the sampling resolution), which are shown in brackets.",
         "",
         "* **paper**: `ipfit fit --paper` (the paper's DE and Algorithm 1, degrees up to 10);",
         "* **geometric**: the recommended pipeline before the capture rule, run by the code of commit 69d992a "
         "(Algorithm 1 restricted to clean degrees, search on 3,000 points, degrees up to 10);",
-        "* **capture**: `ipfit fit` today (the capture rule of `ipfit.rules`, degrees up to 14 within 2 points per "
-        "coefficient, the 2D search settings of `ipfit.options.AUTO`).",
+        "* **capture**: `ipfit fit` today (the capture rule of `ipfit.degree.rules`, degrees up to 14 within 2 points per "
+        "coefficient, the 2D search settings of `ipfit.fitting.options.AUTO`).",
         "",
         "| pipeline | median F | 10th percentile | minimum | with spurious components | not closed | "
         "mean degree | total seconds |",

@@ -97,8 +97,8 @@ def fit_dataset(name: str, results_dir: Path, method: str) -> Path:
 
 def make_figure(result_path: Path, out_dir: Path, *, comparisons: bool = True, resolution: int | None = None,
                 up: str | None = None) -> Path:
-    from ipfit.plotting import plot_result
-    from ipfit.results import load_result
+    from ipfit.viz.plotting import plot_result
+    from ipfit.degree.results import load_result
 
     name = result_path.stem
     result = load_result(result_path)

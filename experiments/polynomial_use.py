@@ -22,10 +22,10 @@ from pathlib import Path
 import numpy as np
 
 import ipfit
-from ipfit.curvature import curvature
-from ipfit.invariants import invariants, similarity
-from ipfit.projection import distance_summary
-from ipfit.recognition import CLASSES, demo_collection, retrieval_precision
+from ipfit.analysis.curvature import curvature
+from ipfit.analysis.invariants import invariants, similarity
+from ipfit.analysis.projection import distance_summary
+from ipfit.analysis.recognition import CLASSES, demo_collection, retrieval_precision
 
 ROOT = Path(__file__).resolve().parents[1]
 DATASETS = ("airplane", "apple", "boot", "butterfly", "duck", "bunny")
@@ -35,9 +35,9 @@ def render_bunny(folder: Path) -> tuple[str, float, dict]:
     """Render the bunny fit, and check what was drawn: sign changes of f, distance to the scan."""
     from scipy.spatial import cKDTree
 
-    from ipfit.results import result_view
-    from ipfit.rays import camera_rays, first_hits
-    from ipfit.zeroset import data_bounds
+    from ipfit.degree.results import result_view
+    from ipfit.analysis.rays import camera_rays, first_hits
+    from ipfit.zeroset.extract import data_bounds
 
     view = result_view(ROOT / "docs/datasets/bunny.json")
     poly, box, camera = view.polynomial, data_bounds(view.bounds.T, 0.1), dict(view=(15.0, -70.0), up="y")
@@ -252,19 +252,19 @@ ranges from {kmin:.3g} to {kmax:.3g} per data unit:
 
 ## Invariant descriptors and retrieval
 
-`ipfit.descriptors(results)` (one row per fit; `ipfit.invariants.invariants(poly)` for one)
+`ipfit.descriptors(results)` (one row per fit; `ipfit.analysis.invariants.invariants(poly)` for one)
 centres f at the point that minimises the Bombieri norm of its degree-(g−1) part, splits each
 homogeneous part into harmonic components (orders m, m−2, …) whose energies on the unit
 circle/sphere are rotation invariant, and normalises scale and the factor of f. Fits of the
 same shape in any pose give the same numbers; for exactly moved copies built algebraically
-(`ipfit.invariants.similarity`):
+(`ipfit.analysis.invariants.similarity`):
 
 {chr(10).join(invariance)}
 
 Retrieval demo: {args.per_class} contours per class ({", ".join(CLASSES)}), each randomly
 rotated, scaled (0.5–3), moved and perturbed by 1% normal noise, fitted with `fit_3l` at a
 fixed degree; each contour queries the others by Euclidean distance between log-descriptors
-(`ipfit.recognition.retrieval_precision`, k = {args.per_class - 1}):
+(`ipfit.analysis.recognition.retrieval_precision`, k = {args.per_class - 1}):
 
 {chr(10).join(retrieval_rows)}
 

@@ -11,7 +11,7 @@ recommended pipeline (``ipfit fit``) of the code of ``--before`` (commit 69d992a
 geometric rule, no precision repair) and of this checkout (the capture rule, which also repairs
 degrees that bulge), and records per degree and at the selected degree the F-score, precision
 (zero set → data), recall (data → zero set), spurious components and seconds, all measured by
-``ipfit.quality.quality`` against the meshes' faces (τ = 2% of the box diagonal). Figures with
+``ipfit.zeroset.quality.quality`` against the meshes' faces (τ = 2% of the box diagonal). Figures with
 the data overlaid go to ``docs/quality-3d/``.
 
 Two worker processes run side by side, one per code version (``experiments/_versions.py``).
@@ -65,7 +65,7 @@ def figures(rows: list[dict], specs: dict[str, str], folder: Path) -> None:
     import matplotlib.pyplot as plt
 
     from ipfit import ImplicitPolynomial, load
-    from ipfit.plotting import plot_surface, save_figure
+    from ipfit.viz.plotting import plot_surface, save_figure
 
     folder.mkdir(parents=True, exist_ok=True)
     by_model: dict[str, dict[str, dict]] = {}
@@ -98,10 +98,10 @@ def markdown(rows: list[dict], seed: int) -> str:
         f"seed {seed}: the recommended pipeline (`ipfit fit`, all points, degrees 2-8) on the bundled 3D data and "
         "the 12 `turk-dev` models, with the code before the change (commit 69d992a: the geometric rule) and "
         "today's (the capture rule, which also repairs a clean degree whose zero set bulges away from the data). "
-        "Measured by `ipfit.quality.quality` against each mesh's faces (τ = 2% of the box diagonal): "
+        "Measured by `ipfit.zeroset.quality.quality` against each mesh's faces (τ = 2% of the box diagonal): "
         "**precision** is the share of the zero set within τ of the data's surface (a bulge or a lobe lowers it), "
         "**recall** the share of the data within τ of the zero set; spurious components are counted beyond *specks* "
-        "(`ipfit.rules.is_speck`: smaller than τ²/4 in area and within 2τ of the data, fragments of thin parts at the "
+        "(`ipfit.degree.rules.is_speck`: smaller than τ²/4 in area and within 2τ of the data, fragments of thin parts at the "
         "sampling resolution), which are shown in brackets. Two worker processes with one thread each, "
         "one per code version, side by side.",
         "",

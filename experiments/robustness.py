@@ -42,7 +42,7 @@ from pathlib import Path
 import numpy as np
 
 import ipfit
-from ipfit import _atomic
+from ipfit._utils import atomic as _atomic
 from ipfit.cli import main
 from ipfit.exceptions import IpfitError
 

@@ -49,7 +49,7 @@ def _show_degree(driver, degree: int) -> None:
 def main(argv=None) -> int:
     from ipfit import load_dataset
     from ipfit.datasets.bundled import dataset_faces
-    from ipfit.viewer import write_html
+    from ipfit.viz.viewer import write_html
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("names", nargs="*", default=["bunny", "duck", "butterfly"])

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import ipfit
-from ipfit.adaptive import fit_adaptive, select_degree
+from ipfit.degree.adaptive import fit_adaptive, select_degree
 from ipfit.datasets import synthetic
 
 
@@ -78,7 +78,7 @@ def test_geometric_rule_never_selects_an_unclean_degree_when_a_clean_one_exists(
 
 
 def test_geometric_selection_on_hand_made_paths():
-    from ipfit.adaptive import select_degree_geometric
+    from ipfit.degree.adaptive import select_degree_geometric
 
     # the paper picks 4 (gain 0.005 at 6), but 4 has a spurious sheet: the best clean one wins
     assert select_degree_geometric([2, 4, 6], [0.8, 0.9, 0.905], [True, False, True], [0.6, 0.9, 0.8]) == (2, "geometric")
@@ -147,7 +147,7 @@ def test_every_result_type_speaks_scipys_vocabulary(rng):
     refined = ipfit.refine(shape.points, shape.normals, 2, options=opts, rng=rng)
     adaptive = fit_adaptive(shape.points, shape.normals, options=opts, max_degree=4, rng=rng)
     solver = DifferentialEvolution(lambda x: np.sum(x**2, axis=1), rng.normal(size=(8, 3)), maxiter=2, rng=rng).solve()
-    from ipfit._result import Result
+    from ipfit._utils.result import Result
 
     for res in (solver, refined, adaptive, adaptive.degrees[0]):
         assert isinstance(res, Result)  # one definition of the shared fields
@@ -172,7 +172,7 @@ def test_a_spurious_component_is_polished_away_before_the_degree_is_rejected():
     a = np.linalg.lstsq(ipfit.basis.monomials(norm.apply(probe), exps),
                         (x**2 + y**2 - 1) * ((x - 0.5) ** 2 + y**2 - 0.04), rcond=None)[0]
     spurious = ipfit.ImplicitPolynomial(exps, a, norm)
-    from ipfit.quality import stray_samples
+    from ipfit.zeroset.quality import stray_samples
 
     places = stray_samples(spurious, pts, ordered_contour=True)
     assert len(places)

@@ -18,7 +18,7 @@ import ipfit
 from ipfit.datasets import synthetic
 from ipfit.exceptions import InvalidInputError, IpfitError
 from ipfit.io.silhouettes import MAX_IMAGE_PIXELS, trace_silhouette
-from ipfit.quality import stray_samples
+from ipfit.zeroset.quality import stray_samples
 
 SRC = os.path.join(os.path.dirname(__file__), os.pardir, "src")
 

@@ -22,7 +22,7 @@ from ipfit.batch import COLUMNS, THREAD_ENV, fit_many, local_cluster, shape_rng 
 from ipfit.cli import main  # noqa: E402
 from ipfit.datasets import collection, synthetic  # noqa: E402
 from ipfit.io import write_points  # noqa: E402
-from ipfit.results import load_result  # noqa: E402
+from ipfit.degree.results import load_result  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 FAST = RECOMMENDED.replace(iterations=5, population_size=12, polish_iterations=10)

@@ -23,7 +23,7 @@ from ipfit.cli import main  # noqa: E402
 from ipfit.datasets import collection  # noqa: E402
 from ipfit.exceptions import InvalidInputError  # noqa: E402
 from ipfit.io import write_points  # noqa: E402
-from ipfit.results import load_result  # noqa: E402
+from ipfit.degree.results import load_result  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 FAST = dict(method="3l", max_degree=2)

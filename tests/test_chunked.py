@@ -8,7 +8,7 @@ import pytest
 da = pytest.importorskip("dask.array")
 
 from ipfit import InvalidInputError, ReadError, fit_linear  # noqa: E402
-from ipfit.chunked import CHUNKED_METHODS, fit_chunked, open_cloud  # noqa: E402
+from ipfit.fitting.chunked import CHUNKED_METHODS, fit_chunked, open_cloud  # noqa: E402
 from ipfit.datasets import synthetic  # noqa: E402
 
 

@@ -9,7 +9,7 @@ import pytest
 
 from ipfit.cli import main
 from ipfit.datasets import synthetic
-from ipfit.invariants import similarity
+from ipfit.analysis.invariants import similarity
 
 
 @pytest.fixture

@@ -11,9 +11,9 @@ import pytest
 
 import ipfit
 
-from ipfit.adaptive import select_degree, select_degree_geometric
-from ipfit.quality import Quality
-from ipfit.rules import is_clean, select_degree_capture
+from ipfit.degree.adaptive import select_degree, select_degree_geometric
+from ipfit.zeroset.quality import Quality
+from ipfit.degree.rules import is_clean, select_degree_capture
 from ipfit.cli import main
 
 
@@ -160,7 +160,7 @@ def test_help_lists_every_option():
 
 
 def test_ctrl_c_keeps_every_finished_degree(tmp_path, monkeypatch):
-    import ipfit.adaptive as adaptive
+    import ipfit.degree.adaptive as adaptive
 
     real = adaptive.fit_linear
 

@@ -214,15 +214,15 @@ FAULTS = [(errno.ENOSPC, "No space left on device"), (errno.EROFS, "Read-only fi
 @pytest.mark.parametrize("code, reason", FAULTS)
 def test_write_fault_found_before_the_fit(tmp_path, heart_csv, capsys, monkeypatch, code, reason):
     """The disk is full (read-only, forbidden) when the outputs are reserved: no fit runs."""
-    import ipfit._atomic as atomic
-    import ipfit.adaptive
+    import ipfit._utils.atomic as atomic
+    import ipfit.degree.adaptive
 
     def fsync(fd):
         raise OSError(code, os.strerror(code))
 
     fits = []
     monkeypatch.setattr(atomic.os, "fsync", fsync)
-    monkeypatch.setattr(ipfit.adaptive, "fit_adaptive", lambda *a, **k: fits.append(1))
+    monkeypatch.setattr(ipfit.degree.adaptive, "fit_adaptive", lambda *a, **k: fits.append(1))
     assert main(["fit", str(heart_csv), "-o", str(tmp_path / "out" / "r"), *FAST]) == 2
     err = capsys.readouterr().err
     one_error_line(err, "fit")
@@ -235,7 +235,7 @@ def test_write_fault_found_before_the_fit(tmp_path, heart_csv, capsys, monkeypat
 def test_write_fault_during_the_write_is_all_or_nothing(tmp_path, heart_csv, capsys, monkeypatch, code, reason,
                                                         failing):
     """A write fails half-way: one line naming that output, and no output at all remains."""
-    import ipfit._atomic as atomic
+    import ipfit._utils.atomic as atomic
 
     real = atomic.publish
 
@@ -253,7 +253,7 @@ def test_write_fault_during_the_write_is_all_or_nothing(tmp_path, heart_csv, cap
 
 
 def test_score_write_fault_keeps_the_result(tmp_path, heart_csv, result_json, capsys, monkeypatch):
-    import ipfit._atomic as atomic
+    import ipfit._utils.atomic as atomic
 
     before = result_json.read_bytes()
 
@@ -283,12 +283,12 @@ def test_numpy_warnings_never_reach_the_terminal(tmp_path, capsys):
 
 
 def test_keyboard_interrupt_in_process_says_nothing_was_written(tmp_path, heart_csv, capsys, monkeypatch):
-    import ipfit.adaptive
+    import ipfit.degree.adaptive
 
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(ipfit.adaptive, "fit_adaptive", interrupted)
+    monkeypatch.setattr(ipfit.degree.adaptive, "fit_adaptive", interrupted)
     assert main(["fit", str(heart_csv), "-o", str(tmp_path / "r"), *FAST]) == 130
     assert capsys.readouterr().err == "ipfit fit: interrupted; nothing was written\n"
     assert listing(tmp_path) == ["heart.csv"]
@@ -428,8 +428,8 @@ def test_the_command_line_owns_ctrl_c_before_numpy_loads():
 
 
 def test_lazy_package_keeps_functions_named_like_their_modules():
-    import ipfit.quality
-    import ipfit.refine
+    import ipfit.zeroset.quality
+    import ipfit.fitting.refine
 
     assert callable(ipfit.quality) and callable(ipfit.refine) and callable(ipfit.fit_adaptive)
     assert set(ipfit.__all__) <= set(dir(ipfit))

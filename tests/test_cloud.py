@@ -13,10 +13,10 @@ from scipy.spatial import cKDTree
 import ipfit
 from ipfit import Cloud, InvalidInputError
 from ipfit.datasets import synthetic
-from ipfit.sampling import point_spacing
+from ipfit.geometry.sampling import point_spacing
 
-farfield = importlib.import_module("ipfit.farfield")
-quality_module = importlib.import_module("ipfit.quality")  # the package's `quality` is the function
+farfield = importlib.import_module("ipfit.fitting.farfield")
+quality_module = importlib.import_module("ipfit.zeroset.quality")
 
 
 def _counted(monkeypatch, module, name: str) -> list:

@@ -11,7 +11,7 @@ import pytest
 
 import ipfit
 from ipfit import ImplicitPolynomial, Normalization
-from ipfit.codegen import LANGUAGES, to_source
+from ipfit.analysis.codegen import LANGUAGES, to_source
 from ipfit.exceptions import InvalidInputError
 
 
@@ -100,7 +100,7 @@ def test_glsl_single_precision_tolerance(poly, rng, tmp_path):
     out = _compile_and_run(tmp_path, body, _c_main(pts, "ipfit_f", None, poly.dim, "float"),
                            flags=("-fsingle-precision-constant", "-Wno-double-promotion"))
     scale = _term_scale(poly, pts)
-    # Stated tolerance (ipfit.codegen): a few 1e-6 of the term sum, times the degree.
+    # Stated tolerance (ipfit.analysis.codegen): a few 1e-6 of the term sum, times the degree.
     assert np.all(np.abs(out[:, 0] - poly(pts)) <= 1e-6 * poly.degree * scale)
 
 

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 import ipfit
-from ipfit.curvature import curvature, hessian
+from ipfit.analysis.curvature import curvature, hessian
 from ipfit.datasets.synthetic import circle, from_terms, sphere, torus
-from ipfit.invariants import similarity
+from ipfit.analysis.invariants import similarity
 
 
 def _rotation(rng, dim):

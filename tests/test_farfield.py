@@ -7,8 +7,8 @@ import ipfit
 from numeric_checks import value_grad_and_differences
 from ipfit.basis import n_coefficients
 from ipfit.datasets import synthetic
-from ipfit.farfield import FarFieldTerm, far_field_samples
-from ipfit.objective import Objective
+from ipfit.fitting.farfield import FarFieldTerm, far_field_samples
+from ipfit.fitting.objective import Objective
 
 
 def test_samples_are_signed_by_the_normals_and_keep_clear_of_the_data():
@@ -73,7 +73,7 @@ def test_weight_zero_is_the_papers_objective_exactly(rng):
 
 
 def test_far_field_rows_remove_the_spurious_sheets_of_3l_on_a_sphere():
-    from ipfit.quality import quality
+    from ipfit.zeroset.quality import quality
 
     shape = synthetic.sphere(500)
     plain = quality(ipfit.fit_3l(shape.points, shape.normals, 4), shape.points)
@@ -91,7 +91,7 @@ def test_far_field_weight_zero_is_plain_3l(rng):
 
 
 def test_refine_with_far_field_reports_both_values():
-    from ipfit.refine import refine
+    from ipfit.fitting.refine import refine
 
     shape = synthetic.ellipse(80)
     plain = refine(shape.points, shape.normals, 4, options=ipfit.RECOMMENDED.replace(iterations=5, far_term_weight=0.0),
@@ -107,7 +107,7 @@ def test_refine_with_far_field_reports_both_values():
 def test_term_samples_follow_the_count_rule_keep_clear_and_spread_evenly():
     from scipy.spatial import cKDTree
 
-    from ipfit.farfield import SPREAD_OFFSET, term_sample_count, term_samples
+    from ipfit.fitting.farfield import SPREAD_OFFSET, term_sample_count, term_samples
 
     shape = synthetic.circle(120)
     samples, targets = term_samples(shape.points, shape.normals, c=0.05)
@@ -185,7 +185,7 @@ def test_bound_screens_members_that_lose_on_the_data_alone(dim, rng):
 
 
 def test_compiled_farthest_points_match_a_plain_numpy_selection(rng):
-    from ipfit._distance_kernels import farthest_points
+    from ipfit.geometry._distance_kernels import farthest_points
 
     candidates = rng.normal(size=(500, 3))
     reach = 0.5 + rng.random(500)
@@ -204,7 +204,7 @@ def test_single_member_pass_is_the_sum_of_its_parts(dim, rng, monkeypatch):
     # The polish's compiled pass stacks the data and every far-field term's samples; its value
     # and gradient must be the paper's objective plus each term's own (numpy) value_and_grad,
     # whether the rows fit in one block or run in ragged blocks, and in a float32 objective too.
-    import ipfit.objective as objective_module
+    import ipfit.fitting.objective as objective_module
 
     shape = synthetic.ellipse(300) if dim == 2 else synthetic.torus(600, rng=rng)
     degree = 4

@@ -8,8 +8,8 @@ import pytest
 import ipfit
 from ipfit import ImplicitPolynomial, Normalization
 from ipfit.datasets.synthetic import torus
-from ipfit.invariants import compose_linear, invariant_center, invariants, similarity
-from ipfit.recognition import CLASSES, demo_collection, demo_contour, retrieval_precision
+from ipfit.analysis.invariants import compose_linear, invariant_center, invariants, similarity
+from ipfit.analysis.recognition import CLASSES, demo_collection, demo_contour, retrieval_precision
 
 
 def _rotation(rng, dim):

@@ -15,6 +15,7 @@ from scipy.spatial import cKDTree
 
 from ipfit import io
 from ipfit.datasets.bundled import DATA_DIR
+from ipfit.geometry.mesh import face_normals, merge_duplicates, vertex_normals_from_faces
 from ipfit.exceptions import InvalidInputError, ReadError
 
 FIXTURES = Path(__file__).with_name("data")
@@ -74,7 +75,7 @@ def test_duck_rows_split_per_face_merge_to_their_distinct_positions():
     assert mesh.faces.shape == (150, 3) and mesh.faces.max() < len(distinct)
     assert io.read_mesh(path, merge=False).points.shape == (len(raw), 3)
     # the file's flat per-face normals, averaged per position, agree with the faces' normals
-    from_faces = io.vertex_normals_from_faces(mesh.points, mesh.faces)
+    from_faces = vertex_normals_from_faces(mesh.points, mesh.faces)
     assert np.median(np.einsum("ij,ij->i", mesh.normals, from_faces)) > 0.99
 
 
@@ -85,7 +86,7 @@ def test_bunny_normals_come_from_its_faces():
     cloud = io.read_points(path)
     points, normals = cloud
     assert cloud.normals_source == "faces"
-    from_faces = io.vertex_normals_from_faces(mesh.points, mesh.faces)
+    from_faces = vertex_normals_from_faces(mesh.points, mesh.faces)
     ok = from_faces.any(axis=1)  # vertices only in zero-area faces borrow a neighbour's
     assert ok.mean() > 0.98
     np.testing.assert_allclose(normals[ok], from_faces[ok])
@@ -104,7 +105,7 @@ def test_vertices_without_faces_get_their_nearest_neighbours_normal(tmp_path):
     bunny.write(str(tmp_path / "b.ply"))
     points, normals = io.read_points(tmp_path / "b.ply")
     mesh = io.read_mesh(tmp_path / "b.ply")
-    lonely = ~io.vertex_normals_from_faces(mesh.points, mesh.faces).any(axis=1)
+    lonely = ~vertex_normals_from_faces(mesh.points, mesh.faces).any(axis=1)
     assert lonely.sum() == 3 and np.isfinite(normals).all()
     np.testing.assert_allclose(np.linalg.norm(normals, axis=1), 1.0)
     nearest = cKDTree(points[~lonely]).query(points[lonely])[1]
@@ -315,7 +316,7 @@ def test_npy_and_npz(tmp_path, rng):
 def test_merge_duplicates_averages_normals_and_keeps_order():
     points = np.array([[1.0, 0, 0], [0, 0, 0], [1, 0, 0], [-0.0, 0, 0], [2, 0, 0]])
     normals = np.array([[1.0, 0, 0], [0, 1, 0], [0, 0, 1], [0, 1, 0], [1, 0, 0]])
-    merged = io.merge_duplicates(points, normals)
+    merged = merge_duplicates(points, normals)
     np.testing.assert_array_equal(merged.points, [[1, 0, 0], [0, 0, 0], [2, 0, 0]])
     np.testing.assert_array_equal(merged.index, [0, 1, 0, 1, 2])
     np.testing.assert_allclose(merged.normals[0], _unit(np.array([[1.0, 0, 1]]))[0])
@@ -326,10 +327,10 @@ def test_face_and_vertex_normals_are_area_weighted():
     # a big triangle in z = 0 and a small one in x = 0 share vertex 0
     points = np.array([[0, 0, 0], [10, 0, 0], [0, 10, 0], [0, 1, 0], [0, 0, 1]], dtype=float)
     faces = np.array([[0, 1, 2], [0, 3, 4]])
-    np.testing.assert_allclose(io.face_normals(points, faces), [[0, 0, 1], [1, 0, 0]])
-    vn = io.vertex_normals_from_faces(points, faces)
+    np.testing.assert_allclose(face_normals(points, faces), [[0, 0, 1], [1, 0, 0]])
+    vn = vertex_normals_from_faces(points, faces)
     np.testing.assert_allclose(vn[0], _unit(np.array([[1.0, 0, 100]]))[0])
-    assert not io.vertex_normals_from_faces(np.vstack([points, [[5, 5, 5]]]), faces)[5].any()  # no direction: zero
+    assert not vertex_normals_from_faces(np.vstack([points, [[5, 5, 5]]]), faces)[5].any()  # no direction: zero
 
 
 # -- silhouettes ---------------------------------------------------------------------------------

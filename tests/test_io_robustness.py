@@ -10,6 +10,7 @@ from PIL import Image
 
 import ipfit
 from ipfit import io
+from ipfit.geometry.mesh import vertex_normals_from_faces
 from ipfit.exceptions import InvalidInputError, NormalsDroppedWarning, ReadError
 
 OFF_1E308 = "OFF\n4 1 0\n0 0 0\n1 0 0\n0 1 0\n0 1e308 0\n3 0 1 2\n"
@@ -49,8 +50,8 @@ def test_face_normals_do_not_depend_on_the_scale(scale):
     faces = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        np.testing.assert_allclose(io.vertex_normals_from_faces(points * scale, faces),
-                                   io.vertex_normals_from_faces(points, faces), atol=1e-15)
+        np.testing.assert_allclose(vertex_normals_from_faces(points * scale, faces),
+                                   vertex_normals_from_faces(points, faces), atol=1e-15)
 
 
 @pytest.mark.parametrize("name, text, words", [

@@ -9,7 +9,7 @@ from scipy.spatial.transform import Rotation
 import ipfit
 from ipfit import basis
 from ipfit.datasets import synthetic
-from ipfit.linear import LINEAR_METHODS, fit_linear, ridge_penalty
+from ipfit.fitting.linear import LINEAR_METHODS, fit_linear, ridge_penalty
 
 EXACT_SHAPES = {
     "circle": (lambda: synthetic.circle(120, radius=2.5, center=(1.0, -3.0)), (2, 4)),
@@ -204,7 +204,7 @@ def test_all_fits_take_points_normals_degree_and_the_old_order_is_gone():
     with pytest.raises(TypeError, match="far_weight"):
         ipfit.fit_3l(shape.points, shape.normals, 2, far_weight=1e-3)
     far = ipfit.fit_linear(shape.points, shape.normals, 2, "3l-far")
-    assert far.info["far_row_weight"] == ipfit.linear.DEFAULT_FAR_ROW_WEIGHT and far.info["far_samples"] > 0
+    assert far.info["far_row_weight"] == ipfit.fitting.linear.DEFAULT_FAR_ROW_WEIGHT and far.info["far_samples"] > 0
 
 
 @pytest.mark.parametrize("method", ["lstsq", "taubin", "3l", "ridge", "gradient_one", "3l-far"])
@@ -215,7 +215,7 @@ def test_blocked_qr_equals_the_one_shot_qr(monkeypatch, method):
     shape = synthetic.ellipsoid(400, axes=(1.5, 1.0, 0.7))
     pts = shape.points + 0.02 * np.random.default_rng(1).normal(size=shape.points.shape)
     one_shot = ipfit.fit_linear(pts, shape.normals, 4, method)
-    monkeypatch.setattr(ipfit.linear, "_BLOCK_ROWS", 97)  # arrays: nothing kept, so factored again, in blocks
+    monkeypatch.setattr(ipfit.fitting.linear, "_BLOCK_ROWS", 97)  # arrays: nothing kept, so factored again, in blocks
     blocked = ipfit.fit_linear(pts, shape.normals, 4, method)
     np.testing.assert_allclose(blocked.coefficients, one_shot.coefficients, rtol=1e-9, atol=1e-12)
 
@@ -225,13 +225,13 @@ def test_start_fits_share_their_big_factors_and_solve_the_stacked_systems(monkey
     # the values M and the gradient rows), the same fits of arrays each factor their own (nothing
     # is kept across calls) to the same coefficients, and each fit is still the least-squares
     # solution of its whole stacked system, here against numpy's lstsq of the explicit rows.
-    from ipfit.options import DEFAULT_START_FITS, parse_start_fit
+    from ipfit.fitting.options import DEFAULT_START_FITS, parse_start_fit
 
     shape = synthetic.torus(500, rng=rng)
     pts = shape.points + 0.01 * rng.normal(size=shape.points.shape)
     factored = []
-    real = ipfit.linear._r_of_blocks
-    monkeypatch.setattr(ipfit.linear, "_r_of_blocks", lambda blocks: factored.append(1) or real(blocks))
+    real = ipfit.fitting.linear._r_of_blocks
+    monkeypatch.setattr(ipfit.fitting.linear, "_r_of_blocks", lambda blocks: factored.append(1) or real(blocks))
     cloud = ipfit.Cloud(pts, shape.normals)
 
     def start_fits(data, normals):
@@ -253,7 +253,7 @@ def test_start_fits_share_their_big_factors_and_solve_the_stacked_systems(monkey
              np.concatenate([np.zeros(len(m)), np.sqrt(10) * shape.normals.T.ravel()])),
             ("ridge(kappa=1e-3)", None, None)]:
         if a_rows is None:  # 3L rows at ±c plus the ridge rows √(κ D)
-            c = ipfit.linear.DEFAULT_OFFSET
+            c = ipfit.fitting.linear.DEFAULT_OFFSET
             off = np.concatenate([u, u + c * shape.normals, u - c * shape.normals])
             a_rows = np.vstack([basis.monomials(off, basis.exponents(3, 4)),
                                 np.diag(np.sqrt(1e-3 * ridge_penalty(u, basis.exponents(3, 4))))])
@@ -284,13 +284,13 @@ def test_a_method_registered_once_is_a_fit_a_start_fit_and_a_cli_choice(monkeypa
     # One registry: a method added to LINEAR_METHODS (with its parameters) is accepted by
     # fit_linear, as a start fit "name(param=...)" with its checks, and by `ipfit fit --method`.
     from ipfit.cli import build_parser
-    from ipfit.linear import LinearMethod
+    from ipfit.fitting.linear import LinearMethod
 
     def solve_wide_3l(problem, c=0.3):  # 3L at a wider default offset: a method of one's own
-        return ipfit.linear._solve_3l(problem, c=c)
+        return ipfit.fitting.linear._solve_3l(problem, c=c)
 
     monkeypatch.setitem(LINEAR_METHODS, "wide3l", LinearMethod(solve_wide_3l, needs_normals=True,
-                                                               params={"c": ipfit.linear._offset}))
+                                                               params={"c": ipfit.fitting.linear._offset}))
     shape = synthetic.ellipse(80)
     own = fit_linear(shape.points, shape.normals, 2, "wide3l", c=0.2)
     np.testing.assert_array_equal(own.coefficients, ipfit.fit_3l(shape.points, shape.normals, 2, c=0.2).coefficients)

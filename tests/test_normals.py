@@ -6,8 +6,8 @@ from scipy.spatial import cKDTree
 
 from ipfit.datasets import bundled, synthetic
 from ipfit.exceptions import InvalidInputError
-from ipfit.io import fill_missing_normals, vertex_normals_from_faces
-from ipfit.io.mesh import outward_vertices
+from ipfit.geometry.mesh import fill_missing_normals, vertex_normals_from_faces
+from ipfit.geometry.mesh import outward_vertices
 from ipfit.normals import DEFAULT_K, contour_normals, estimate_normals, normal_agreement, orient_normals
 from ipfit.normals.local import pca_normals
 from ipfit.normals.scale import noise_scale

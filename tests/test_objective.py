@@ -10,9 +10,9 @@ import pytest
 
 from ipfit import ImplicitPolynomial, InvalidInputError, Normalization, basis
 from numeric_checks import value_grad_and_differences
-from ipfit import objective as objective_module
+from ipfit.fitting import objective as objective_module
 from ipfit.datasets import synthetic
-from ipfit.objective import TAUBIN_CAP, Measures, Objective, measures
+from ipfit.fitting.objective import TAUBIN_CAP, Measures, Objective, measures
 
 CIRCLE = [-1.0, 0, 0, 1.0, 0, 1.0]  # x² + y² − 1 in the graded order 1, x, y, x², xy, y²
 

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import ipfit
-from ipfit._optional import EXTRAS, MissingDependencyError, install_line, missing, require
+from ipfit._utils.optional import EXTRAS, MissingDependencyError, install_line, missing, require
 
 SRC = str(Path(ipfit.__file__).resolve().parents[1])
 

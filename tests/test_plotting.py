@@ -66,7 +66,7 @@ def torus_result():
 
 
 def test_plot_curve_draws_zero_set_and_points():
-    from ipfit.plotting import plot_curve
+    from ipfit.viz.plotting import plot_curve
 
     shape = synthetic.circle()
     ax = plot_curve(shape.polynomial, shape.points)
@@ -79,8 +79,8 @@ def test_plot_curve_draws_zero_set_and_points():
 def test_plot_surface_shaded_and_decimated():
     from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
-    from ipfit.plotting import plot_surface
-    from ipfit.zeroset import extract_zero_set
+    from ipfit.viz.plotting import plot_surface
+    from ipfit.zeroset.extract import extract_zero_set
 
     shape = synthetic.torus(400)
     zs = extract_zero_set(shape.polynomial, points=shape.points, resolution=64)
@@ -95,7 +95,7 @@ def test_plot_surface_shaded_and_decimated():
 
 def test_plot_smoothness_marks_selected():
     from ipfit import InvalidInputError
-    from ipfit.plotting import plot_smoothness
+    from ipfit.viz.plotting import plot_smoothness
 
     ax = plot_smoothness([2, 4, 6], [0.8, 0.9, 0.91], selected=4)
     assert len(ax.lines) == 2
@@ -106,7 +106,7 @@ def test_plot_smoothness_marks_selected():
 
 
 def test_plot_result_panels_2d(ellipse_result, tmp_path):
-    from ipfit.plotting import plot_result
+    from ipfit.viz.plotting import plot_result
 
     shape, result = ellipse_result
     fig = plot_result(result, shape.points, tmp_path / "e.png")
@@ -122,7 +122,7 @@ def test_plot_result_panels_2d(ellipse_result, tmp_path):
 def test_plot_result_panels_3d(torus_result, tmp_path):
     from mpl_toolkits.mplot3d.art3d import Path3DCollection
 
-    from ipfit.plotting import plot_result
+    from ipfit.viz.plotting import plot_result
 
     shape, result = torus_result
     fig = plot_result(result, shape.points, tmp_path / "t.png", resolution=32, title="torus")
@@ -136,7 +136,7 @@ def test_plot_result_panels_3d(torus_result, tmp_path):
 
 
 def test_plot_result_plain_polynomial_and_path(tmp_path):
-    from ipfit.plotting import plot_result
+    from ipfit.viz.plotting import plot_result
 
     poly = synthetic.sphere().polynomial
     poly.save(tmp_path / "s.json")
@@ -147,7 +147,7 @@ def test_plot_result_plain_polynomial_and_path(tmp_path):
 
 
 def test_fixed_degree_result_is_one_panel_for_that_degree(ellipse_result):
-    from ipfit.plotting import plot_result
+    from ipfit.viz.plotting import plot_result
 
     shape, result = ellipse_result
     fixed = dict(result, degrees=result["degrees"][:1], comparisons={})
@@ -159,7 +159,7 @@ def test_fixed_degree_result_is_one_panel_for_that_degree(ellipse_result):
 
 
 def test_smoothness_axis_plain_labels_and_no_fake_dip():
-    from ipfit.plotting import MIN_SMOOTHNESS_SPAN, plot_smoothness
+    from ipfit.viz.plotting import MIN_SMOOTHNESS_SPAN, plot_smoothness
 
     # a straight line's smoothness differs in the 6th decimal between degrees
     ax = plot_smoothness([2, 4, 6], [0.8960001, 0.8960031, 0.8960012], selected=2)
@@ -180,7 +180,7 @@ def test_points_drawn_over_a_surface_face_the_camera():
     """Against matplotlib's own camera: the points shown are those on the sphere's near half."""
     from mpl_toolkits.mplot3d.art3d import Path3DCollection
 
-    from ipfit.plotting import plot_surface
+    from ipfit.viz.plotting import plot_surface
 
     shape = synthetic.sphere(800)
     for view, up in [((20.0, -60.0), "z"), ((0.0, 0.0), "z"), ((-35.0, 120.0), "y"), ((60.0, 200.0), "x")]:
@@ -197,7 +197,7 @@ def test_points_drawn_over_a_surface_face_the_camera():
 def test_display_points_sample_a_mesh_where_it_has_no_vertices():
     import trimesh
 
-    from ipfit.plotting import display_points
+    from ipfit.viz.plotting import display_points
 
     capsule = trimesh.creation.capsule(height=2.0, radius=0.5)
     vertices, faces = np.asarray(capsule.vertices), np.asarray(capsule.faces)
@@ -218,8 +218,8 @@ def _two_ovals():
 def test_spurious_curves_in_their_own_colour():
     from matplotlib.colors import to_rgba
 
-    from ipfit.plotting import SPURIOUS_COLOR, plot_result
-    from ipfit.zeroset import extract_zero_set
+    from ipfit.viz.plotting import SPURIOUS_COLOR, plot_result
+    from ipfit.zeroset.extract import extract_zero_set
 
     poly = _two_ovals()
     zs = extract_zero_set(poly, bounds=[[-2, 2], [-1, 1]])
@@ -237,9 +237,9 @@ def test_spurious_curves_in_their_own_colour():
 def test_spurious_surface_pieces_are_red_and_see_through():
     from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
-    from ipfit.plotting import SPURIOUS_ALPHA, plot_surface
-    from ipfit.quality import spurious_components
-    from ipfit.zeroset import extract_zero_set
+    from ipfit.viz.plotting import SPURIOUS_ALPHA, plot_surface
+    from ipfit.zeroset.quality import spurious_components
+    from ipfit.zeroset.extract import extract_zero_set
 
     blobs = synthetic.from_terms(3, 4, {(4, 0, 0): 1, (2, 0, 0): -2, (0, 2, 0): 1, (0, 0, 2): 1, (0, 0, 0): 0.75})
     zs = extract_zero_set(blobs, bounds=[[-2, 2], [-1, 1], [-1, 1]], resolution=40)
@@ -261,7 +261,7 @@ def test_spurious_surface_pieces_are_red_and_see_through():
 
 @pytest.mark.parametrize("name", ["fig.xyz", "fig", "fig.png.partial.raw"])
 def test_save_figure_refuses_unknown_suffixes(tmp_path, name):
-    from ipfit.plotting import plot_smoothness, save_figure
+    from ipfit.viz.plotting import plot_smoothness, save_figure
 
     ax = plot_smoothness([2, 4], [0.8, 0.9])
     with pytest.raises(InvalidInputError, match=r"^path: expected a figure file name ending in \.png, \.pdf"):
@@ -271,7 +271,7 @@ def test_save_figure_refuses_unknown_suffixes(tmp_path, name):
 
 
 def test_save_figure_bounds_the_pixel_count(tmp_path):
-    from ipfit.plotting import MAX_PIXELS, plot_smoothness, save_figure
+    from ipfit.viz.plotting import MAX_PIXELS, plot_smoothness, save_figure
 
     ax = plot_smoothness([2, 4], [0.8, 0.9])
     width, height = ax.figure.get_size_inches()
@@ -318,7 +318,7 @@ def test_figures_for_every_bundled_dataset(tmp_path):
 
 
 def test_result_without_per_degree_coefficients_shows_the_final_fit(ellipse_result):
-    from ipfit.plotting import plot_result
+    from ipfit.viz.plotting import plot_result
 
     shape, result = ellipse_result
     bare = dict(result, degrees=[{k: v for k, v in d.items() if k != "coefficients"} for d in result["degrees"]],
@@ -329,7 +329,7 @@ def test_result_without_per_degree_coefficients_shows_the_final_fit(ellipse_resu
 
 
 def test_interrupted_run_is_not_called_fixed(ellipse_result):
-    from ipfit.plotting import plot_result
+    from ipfit.viz.plotting import plot_result
 
     shape, result = ellipse_result
     stopped = dict(result, degrees=result["degrees"][:1], comparisons={}, adaptive={"reason": "interrupted"})

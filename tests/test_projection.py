@@ -7,7 +7,7 @@ import pytest
 
 import ipfit
 from ipfit.datasets.synthetic import circle, sphere
-from ipfit.projection import distance_summary, project
+from ipfit.analysis.projection import distance_summary, project
 
 
 def test_circle_fit_distances_are_analytic(rng):

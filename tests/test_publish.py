@@ -30,7 +30,7 @@ import numpy as np
 import pytest
 
 import ipfit
-from ipfit import _atomic
+from ipfit._utils import atomic as _atomic
 from ipfit.cli import main
 from ipfit.exceptions import InvalidInputError, ReadError
 from running import wait_for
@@ -117,7 +117,7 @@ def test_concurrent_runs_on_one_prefix_never_mix(tmp_path, runs):
 def test_a_prefix_being_written_is_refused_with_one_line(tmp_path, runs, capsys):
     """Another process holds the prefix (its outputs reserved): fit waits briefly, then says so."""
     inputs, _ = runs
-    holder = subprocess.Popen([sys.executable, "-c", "import sys, time; from ipfit import _atomic; "
+    holder = subprocess.Popen([sys.executable, "-c", "import sys, time; from ipfit._utils import atomic as _atomic; "
                                "_atomic.reserve(sys.argv[1]); print('held', flush=True); time.sleep(60)",
                                str(tmp_path / "r.png")], stdout=subprocess.PIPE, env=_env(), text=True)
     try:
@@ -173,7 +173,7 @@ def test_sigkill_while_publishing_is_finished_by_the_next_writer(tmp_path, runs)
 def test_a_result_read_after_a_killed_publication_is_the_completed_set(tmp_path, runs):
     """A reader of PREFIX.json (mesh, score, plot...) finishes the killed run's renames first, so it
     never reads the old JSON beside the new pictures."""
-    from ipfit.results import load_result
+    from ipfit.degree.results import load_result
 
     _kill_while_writing(tmp_path, runs, lambda f: any(f.glob(".ipfit-*.journal")), pause=0.0)
     assert _atomic.unfinished(tmp_path / "r.json"), "the kill came too late to test the roll-forward"

@@ -11,8 +11,8 @@ import pytest
 import ipfit
 from ipfit import InvalidInputError
 from ipfit.datasets import synthetic
-from ipfit.quality import Quality, looks_like_contour, quality
-from ipfit.zeroset import extract_zero_set
+from ipfit.zeroset.quality import Quality, looks_like_contour, quality
+from ipfit.zeroset.extract import extract_zero_set
 
 from test_zeroset import product
 
@@ -43,7 +43,7 @@ def test_perfect_sphere_fit_against_mesh_faces():
     assert sparse.recall == 1.0 and sparse.precision == 1.0
     # ... where τ alone would not (the bias the allowance removes) ...
     from scipy.spatial import cKDTree
-    from ipfit.zeroset import extract_zero_set
+    from ipfit.zeroset.extract import extract_zero_set
 
     samples = extract_zero_set(poly, points=mesh.vertices, resolution=64).sample(sparse.tau).points
     assert np.mean(cKDTree(mesh.vertices).query(samples)[0] > sparse.tau) > 0.2
@@ -178,9 +178,9 @@ def test_far_distances_enter_the_chamfer_mean():
 def test_measurements_are_reused_only_for_the_same_polynomial_cloud_and_options(monkeypatch):
     import importlib
 
-    from ipfit.quality import stray_samples
+    from ipfit.zeroset.quality import stray_samples
 
-    quality_module = importlib.import_module("ipfit.quality")  # the package's `quality` is the function
+    quality_module = importlib.import_module("ipfit.zeroset.quality")
 
     shape = synthetic.circle(60)
     cloud = ipfit.Cloud(shape.points)

@@ -15,8 +15,8 @@ import pytest
 
 import ipfit
 from ipfit.datasets import synthetic
-from ipfit.quality import quality, spurious_components
-from ipfit.zeroset import ZeroSet, extract_zero_set
+from ipfit.zeroset.quality import quality, spurious_components
+from ipfit.zeroset.extract import ZeroSet, extract_zero_set
 
 from test_zeroset import product
 
@@ -189,7 +189,7 @@ def test_within_tau_is_decided_even_when_the_nearest_element_has_no_near_sample(
 def test_kernel_matches_trimesh_closest_points(rng):
     from trimesh.triangles import closest_point
 
-    from ipfit._distance_kernels import nearest_candidates
+    from ipfit.geometry._distance_kernels import nearest_candidates
 
     tri = rng.normal(size=(400, 3, 3))
     tri[:40, 2] = tri[:40, 0] + 0.5 * (tri[:40, 1] - tri[:40, 0])  # collinear (zero-area) triangles
@@ -221,8 +221,8 @@ def test_threads_and_caches_do_not_change_a_measurement(monkeypatch):
 
     import trimesh
 
-    qmod = importlib.import_module("ipfit.quality")
-    from ipfit import _distance
+    qmod = importlib.import_module("ipfit.zeroset.quality")
+    from ipfit.geometry import distance as _distance
 
     mesh = trimesh.creation.icosphere(subdivisions=3, radius=1.0)
     pts, faces = np.asarray(mesh.vertices), np.asarray(mesh.faces)

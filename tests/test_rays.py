@@ -10,8 +10,8 @@ import pytest
 import ipfit
 from ipfit.datasets.synthetic import circle, sphere, torus
 from ipfit.exceptions import InvalidInputError
-from ipfit.invariants import similarity
-from ipfit.rays import camera_rays, intersect_rays, render
+from ipfit.analysis.invariants import similarity
+from ipfit.analysis.rays import camera_rays, intersect_rays, render
 
 
 def _unit(v):
@@ -128,7 +128,7 @@ def test_render_draws_a_sphere_disc(tmp_path):
 def test_render_refuses_a_box_beyond_float64s_reach_naming_the_box():
     # the camera sits two box radii away: beyond the coordinate limit its rays start at inf
     from ipfit.datasets.synthetic import sphere
-    from ipfit.results import MAX_COORDINATE
+    from ipfit.degree.results import MAX_COORDINATE
 
     with pytest.raises(InvalidInputError, match=r"^bounds: expected a box within ±1e\+150") as info:
         render(sphere().polynomial, [[-1e300, 1e300]] * 3, size=8)

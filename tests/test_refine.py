@@ -8,8 +8,8 @@ import pytest
 from ipfit import (PAPER, RECOMMENDED, ImplicitPolynomial, InvalidInputError, Normalization, SearchOptions, fit_3l,
                    fit_linear)
 from ipfit.datasets import synthetic
-from ipfit.objective import measures
-from ipfit.refine import REFINE_METHODS, RefineResult, refine
+from ipfit.fitting.objective import measures
+from ipfit.fitting.refine import REFINE_METHODS, RefineResult, refine
 
 
 def opts(**changes):
@@ -287,7 +287,7 @@ def test_invalid_data():
 def test_a_big_clouds_solutions_have_the_sign_all_its_normals_give(rng):
     # Beyond FULL_POLISH_POINTS the sign of each solution is decided on a strided sample; it must
     # be the one every point's normal gives: f grows outwards (the gradient agrees with the normals).
-    from ipfit.refine import FULL_POLISH_POINTS
+    from ipfit.fitting.refine import FULL_POLISH_POINTS
 
     shape = synthetic.torus(3 * FULL_POLISH_POINTS // 2)
     res = refine(shape.points, shape.normals, 4, "polish", options=opts(start_fits=("3l", "lstsq")), rng=rng)

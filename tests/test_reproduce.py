@@ -368,7 +368,7 @@ def test_quick_run_figures_exist_and_are_not_blank(quick_run):
 
 @pytest.mark.slow
 def test_quick_run_selected_degrees_follow_the_rule_on_the_saved_paths(quick_run):
-    from ipfit.adaptive import select_degree
+    from ipfit.degree.adaptive import select_degree
 
     for name, ds in rep.load_results(quick_run)["adaptive"]["datasets"].items():
         for method, run in ds["runs"].items():
@@ -383,7 +383,7 @@ def test_quick_run_selected_degrees_follow_the_rule_on_the_saved_paths(quick_run
 @pytest.mark.slow
 def test_quick_run_numbers_are_the_measures_of_the_saved_fits(quick_run):
     from ipfit import ImplicitPolynomial, Normalization
-    from ipfit.objective import measures
+    from ipfit.fitting.objective import measures
 
     results = rep.load_results(quick_run)
     cfg = rep.CONFIGS["quick"]
@@ -399,7 +399,7 @@ def test_quick_run_numbers_are_the_measures_of_the_saved_fits(quick_run):
 @pytest.mark.slow
 def test_quick_run_adaptive_paths_are_the_library_adaptive_runs(quick_run):
     """The recorded paths equal fit_adaptive(method='de') with the same seed: the runner only keeps records."""
-    from ipfit.adaptive import fit_adaptive
+    from ipfit.degree.adaptive import fit_adaptive
 
     results = rep.load_results(quick_run)
     cfg = rep.CONFIGS["quick"]

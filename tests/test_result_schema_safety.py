@@ -18,9 +18,9 @@ import numpy as np
 import pytest
 
 from ipfit import basis
-from ipfit.adaptive import fit_adaptive
+from ipfit.degree.adaptive import fit_adaptive
 from ipfit.exceptions import InvalidInputError, ReadError
-from ipfit.results import load_result, result_view
+from ipfit.degree.results import load_result, result_view
 
 from test_cli_mesh_plot_score import assert_one_error_line, run
 
@@ -259,7 +259,7 @@ def test_fit_command_refuses_offset_data_and_writes_nothing(capsys, tmp_path):
 
 
 def test_quality_without_extent_names_what_the_caller_can_pass():
-    from ipfit.quality import quality
+    from ipfit.zeroset.quality import quality
 
     poly = result_view(quadric(2)).polynomial
     with pytest.raises(InvalidInputError) as info:

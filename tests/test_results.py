@@ -21,7 +21,7 @@ import ipfit
 
 from ipfit import ImplicitPolynomial, InvalidInputError, Normalization, ReadError, basis, fit_adaptive
 from ipfit.datasets import synthetic
-from ipfit.results import (SCHEMA, dumps_result, load_result, result_view, schema_markdown, validate_result,
+from ipfit.degree.results import (SCHEMA, dumps_result, load_result, result_view, schema_markdown, validate_result,
                            write_result)
 
 REPO = Path(__file__).resolve().parents[1]
@@ -278,7 +278,7 @@ def _documented_keys(markdown: str) -> list[str]:
 
 def test_docs_table_is_the_validators_table():
     doc = (REPO / "docs" / "result-format.md").read_text(encoding="utf-8")
-    assert schema_markdown() in doc, "docs/result-format.md is stale: paste ipfit.results.schema_markdown() in"
+    assert schema_markdown() in doc, "docs/result-format.md is stale: paste ipfit.degree.results.schema_markdown() in"
     assert _documented_keys(doc) == [key.path for key in SCHEMA]
 
 
@@ -332,7 +332,7 @@ def test_far_term_weight_has_one_json_key_and_version_1_files_still_read(tmp_pat
     shape = synthetic.ellipse(120)
     options = ipfit.RECOMMENDED.replace(iterations=2, far_term_weight=0.3)
     written = fit_adaptive(shape.points, shape.normals, method="polish", options=options, max_degree=2).to_dict()
-    assert written["version"] == 2 == ipfit.results.FORMAT_VERSION
+    assert written["version"] == 2 == ipfit.degree.results.FORMAT_VERSION
     assert written["adaptive"]["far_term_weight"] == 0.3 and "far_weight" not in written["adaptive"]
     old = json.loads(json.dumps(written))
     old["version"] = 1

@@ -1,4 +1,4 @@
-"""The capture rule (ipfit.rules): when the loop stops, which degree it selects, what counts as clean."""
+"""The capture rule (ipfit.degree.rules): when the loop stops, which degree it selects, what counts as clean."""
 
 from __future__ import annotations
 
@@ -13,8 +13,8 @@ import ipfit
 from ipfit import fit_adaptive
 from ipfit.datasets import load_dataset, synthetic
 from ipfit.exceptions import InvalidInputError
-from ipfit.quality import Quality
-from ipfit.rules import (CAPTURE, GAIN, GEOMETRIC, PAPER, PATIENCE, RULES, TOLERANCE, DegreeRule, capture_stop, gains,
+from ipfit.zeroset.quality import Quality
+from ipfit.degree.rules import (CAPTURE, GAIN, GEOMETRIC, PAPER, PATIENCE, RULES, TOLERANCE, DegreeRule, capture_stop, gains,
                          get_rule, is_clean, select_degree_capture)
 
 
@@ -151,7 +151,7 @@ def test_every_degree_says_why_and_the_choice_obeys_the_rule(rng):
 def test_automatic_degrees_keep_two_points_per_coefficient():
     shape = synthetic.circle(100)
     # degree 8 has 45 coefficients (90 <= 100 points), degree 10 has 66
-    from ipfit.adaptive import _top_degree
+    from ipfit.degree.adaptive import _top_degree
 
     assert _top_degree(100, 2, 2, None, CAPTURE) == 8
     assert _top_degree(100, 2, 2, None, PAPER) == 10
@@ -188,7 +188,7 @@ def test_a_sparse_closed_shape_grows_no_lobe(seed):
 def test_a_repair_never_buys_precision_with_the_data():
     # repair._better: a repaired fit replaces the degree's only if it keeps the recall (within
     # RECALL_KEPT) and is cleaner or has a higher F-score.
-    from ipfit.repair import RECALL_KEPT, _better
+    from ipfit.degree.repair import RECALL_KEPT, _better
 
     def entry(f, recall, spurious=()):
         return SimpleNamespace(quality=_quality(f, recall=recall, spurious=spurious))
@@ -215,11 +215,11 @@ def test_a_repair_stops_at_the_first_weight_that_does_not_help():
     # (x² + y² − 1)(x² + y² − 0.04) on a unit circle's points: the small circle is spurious. The
     # repair tries the clean-up weights in turn, but goes on to a stronger weight only after one
     # that improved the fit.
-    from ipfit.adaptive import DegreeResult
-    from ipfit.objective import measures
-    from ipfit.options import RECOMMENDED
-    from ipfit.quality import quality
-    from ipfit.repair import repair
+    from ipfit.degree.adaptive import DegreeResult
+    from ipfit.fitting.objective import measures
+    from ipfit.fitting.options import RECOMMENDED
+    from ipfit.zeroset.quality import quality
+    from ipfit.degree.repair import repair
 
     circle = synthetic.circle(200)
 
@@ -361,5 +361,5 @@ def test_a_batch_records_its_rule_by_name():
     from ipfit.batch import _rule_name
 
     assert [_rule_name(rule) for rule in (CAPTURE, "paper", "Geometric")] == ["capture", "paper", "Geometric"]
-    with pytest.raises(InvalidInputError, match="^rule: expected a rule's name or a rule of ipfit.rules.RULES"):
+    with pytest.raises(InvalidInputError, match="^rule: expected a rule's name or a rule of ipfit.degree.rules.RULES"):
         _rule_name(LowestClean())

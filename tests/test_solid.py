@@ -5,7 +5,7 @@ import pytest
 import trimesh
 
 from ipfit.exceptions import InvalidInputError
-from ipfit.io.mesh import outward_vertices, winding_number
+from ipfit.geometry.mesh import outward_vertices, winding_number
 
 
 def test_sphere_inside_is_one_outside_is_zero(rng):

@@ -18,7 +18,7 @@ from scipy.spatial import cKDTree
 import ipfit
 from ipfit.datasets import synthetic
 from ipfit.exceptions import InvalidInputError
-from ipfit.trim import default_trim_distance, trim_zero_set
+from ipfit.zeroset.trim import default_trim_distance, trim_zero_set
 
 from test_cli_mesh_plot_score import run
 
@@ -281,7 +281,7 @@ def test_the_figure_draws_the_trimmed_zero_set(fitted_cup):
     # plot_result(trim=...) draws what `ipfit fit --trim` exports: fewer triangles, all near the data
     from matplotlib.collections import PolyCollection
 
-    from ipfit.plotting import plot_result
+    from ipfit.viz.plotting import plot_result
 
     points, poly, _ = fitted_cup
 
@@ -324,7 +324,7 @@ def test_plot_trim_draws_less_of_the_closed_cup(cup_file, tmp_path, capsys):
 def test_the_viewer_draws_the_trimmed_zero_set(fitted_cup):
     # result_figure(trim=...) (ipfit view --trim, ipfit fit --html --trim): fewer triangles, the
     # kept ones near the data
-    from ipfit.viewer import result_figure
+    from ipfit.viz.viewer import result_figure
 
     points, poly, zs = fitted_cup
     distance = zs.trimmed(points).trim.distance

@@ -21,7 +21,7 @@ from test_plotting import adaptive_result
 
 pytest.importorskip("plotly", reason="the viewer needs plotly (pip install 'ipfit[viewer]')")
 
-from ipfit import viewer  # noqa: E402
+from ipfit.viz import viewer  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 

@@ -10,7 +10,7 @@ import pytest
 
 from ipfit import ImplicitPolynomial, InvalidInputError, Normalization, basis
 from ipfit.datasets import synthetic
-from ipfit.zeroset import (ZeroSet, data_bounds, extract_zero_set, grid_axes, grid_values, sample_segments,
+from ipfit.zeroset.extract import (ZeroSet, data_bounds, extract_zero_set, grid_axes, grid_values, sample_segments,
                            sample_triangles)
 
 
