@@ -3,22 +3,6 @@ when to stop, which degree to select), the repair of one degree's stray zero set
 (:mod:`~ipfit.degree.repair`), the degree loop (:mod:`~ipfit.degree.adaptive`: ``fit_adaptive``
 and its results) and the result JSON files it writes and reads (:mod:`~ipfit.degree.results`).
 
-The function ``repair`` is not re-exported here: ``ipfit.degree.repair`` is its module.
+The public names are in :mod:`ipfit` (``ipfit.fit_adaptive``, ``ipfit.DegreeRule``, ...); nothing
+is re-exported here (see :mod:`ipfit.geometry`): reading a result file must not load the search.
 """
-
-from .adaptive import AdaptiveResult, DegreeResult, fit_adaptive, select_degree
-from .results import load_result, result_view, write_result
-from .rules import RULES, DegreeRule, get_rule
-
-__all__ = [
-    "fit_adaptive",
-    "AdaptiveResult",
-    "DegreeResult",
-    "select_degree",
-    "DegreeRule",
-    "RULES",
-    "get_rule",
-    "load_result",
-    "result_view",
-    "write_result",
-]
