@@ -3,6 +3,12 @@
 The method is Interian et al. (2017): linear fits (classic least squares, 3L, 3L + ridge),
 the distance measure dissimilarity + δ(1 − smoothness), metaheuristic refinement and
 adaptive degree selection.
+
+Every public name is here, in one ``__all__``. The package is grouped by concept: the core model
+at the top level (``polynomial``, ``basis``, ``cloud``), then ``fitting`` (one degree), ``degree``
+(choosing it), ``zeroset`` (extracting and measuring the zero set), ``geometry``, ``analysis``
+(using a fit), ``viz``, ``io``, ``normals``, ``datasets``, ``batch``, ``reproduce`` and ``cli``;
+``docs/architecture.md`` shows their layers.
 """
 
 from __future__ import annotations

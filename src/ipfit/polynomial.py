@@ -305,7 +305,7 @@ class ImplicitPolynomial:
     def from_dict(cls, data: Mapping[str, Any], source: str = "result") -> ImplicitPolynomial:
         """The final polynomial of a result's JSON object, validated completely first.
 
-        Every key of ``docs/result-format.md`` is checked (see :mod:`ipfit.degree.results`), so a
+        Every key of ``docs/result-format.md`` is checked (see :mod:`ipfit.results`), so a
         corrupt file gives one :class:`~ipfit.InvalidInputError` naming the bad key.
         """
         data = validate_result(data, source)
@@ -343,33 +343,33 @@ class ImplicitPolynomial:
         return (f"ImplicitPolynomial(dim={self.dim}, degree={self.degree}, "
                 f"n_coefficients={self.n_coefficients}, method={self.method!r})")
 
-    # -- using the polynomial (ipfit.analysis.codegen, rays, projection, curvature) -----------------
+    # -- using the polynomial (ipfit.codegen, rays, projection, curvature) -----------------
     def to_source(self, language: str) -> str:
-        """Standalone source of f and ∇f: see :func:`ipfit.analysis.codegen.to_source`."""
+        """Standalone source of f and ∇f: see :func:`ipfit.codegen.to_source`."""
         from .analysis.codegen import to_source
 
         return to_source(self, language)
 
     def intersect_rays(self, origins: ArrayLike, directions: ArrayLike, tmin: float = 0.0, tmax: float = math.inf):
-        """Every intersection of rays with the zero set: see :func:`ipfit.analysis.rays.intersect_rays`."""
+        """Every intersection of rays with the zero set: see :func:`ipfit.rays.intersect_rays`."""
         from .analysis.rays import intersect_rays
 
         return intersect_rays(origins, directions, self, tmin, tmax)
 
     def project(self, points: ArrayLike):
-        """Closest points on the zero set and true distances: see :func:`ipfit.analysis.projection.project`."""
+        """Closest points on the zero set and true distances: see :func:`ipfit.projection.project`."""
         from .analysis.projection import project
 
         return project(self, points)
 
     def curvature(self, points: ArrayLike):
-        """Curvatures of the level set through ``points``: see :func:`ipfit.analysis.curvature.curvature`."""
+        """Curvatures of the level set through ``points``: see :func:`ipfit.curvature.curvature`."""
         from .analysis.curvature import curvature
 
         return curvature(self, points)
 
     def hessian(self, points: ArrayLike) -> NDArray[np.float64]:
-        """Hessian of f at ``points``, shape (N, dim, dim): see :func:`ipfit.analysis.curvature.hessian`."""
+        """Hessian of f at ``points``, shape (N, dim, dim): see :func:`ipfit.curvature.hessian`."""
         from .analysis.curvature import hessian
 
         return hessian(self, points)
