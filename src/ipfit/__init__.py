@@ -31,6 +31,7 @@ _LAZY = {
     "Measures": "objective", "Objective": "objective", "measures": "objective",
     "plot_curve": "plotting", "plot_result": "plotting", "plot_smoothness": "plotting", "plot_surface": "plotting",
     "ImplicitPolynomial": "polynomial", "Normalization": "polynomial",
+    "ImplicitPolynomialModel": "model",
     "Quality": "quality", "quality": "quality",
     "REFINE_METHODS": "refine", "RefineResult": "refine", "refine": "refine",
     "SearchOptions": "options", "RECOMMENDED": "options", "PAPER": "options", "PAPER_METHOD": "options",
@@ -79,6 +80,7 @@ __version__ = "0.1.0"
 __all__ = [
     "ImplicitPolynomial",
     "Normalization",
+    "ImplicitPolynomialModel",
     "fit_lstsq",
     "fit_taubin",
     "fit_3l",
