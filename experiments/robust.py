@@ -19,7 +19,7 @@ side. Each pipeline fits the corrupted cloud:
   then ``fit_adaptive`` on the points kept;
 * **robust**: ``fit_adaptive(points, outliers="auto")``, skipped while the API has no ``outliers=``.
 
-Each fit is scored against the *clean* shape with :func:`ipfit.quality.quality` (τ = 2% of the
+Each fit is scored against the *clean* shape with :func:`ipfit.zeroset.quality.quality` (τ = 2% of the
 box diagonal; a 2D contour's segments, a mesh's faces): F-score, spurious components, selected
 degree; with the fit's seconds and the share of points each pipeline treated as outliers against
 the planted share. Worker processes (``--jobs``) with one thread each run the cases; each first
@@ -253,7 +253,7 @@ def run_case(shape: str, path: str, condition: str, pipelines: tuple[str, ...], 
     """The rows of every pipeline on ``shape`` corrupted by ``condition``, scored on the clean shape."""
     from _versions import spurious_record
 
-    from ipfit.quality import looks_like_contour, quality
+    from ipfit.zeroset.quality import looks_like_contour, quality
 
     clean, faces = read_clean(path)
     noise, outliers = CONDITIONS[condition]
@@ -454,8 +454,8 @@ def markdown(meta: dict, rows: list[dict]) -> str:
         "with Gaussian noise of σ = 0.5% or 1% of the box diagonal, or 10%, 25% or 40% of the point count added as "
         "outliers uniform in the bounding box grown by 20% on each side; the seed fixed by the file name and the "
         f"settings ({meta['corrupt_check']}). Each fit is scored against the *clean* shape by "
-        "`ipfit.quality.quality` (τ = 2% of the box diagonal; a contour's segments, a mesh's faces); spurious "
-        "components are counted beyond specks (`ipfit.rules.is_speck`). A pipeline that raised counts as F = 0."),
+        "`ipfit.zeroset.quality.quality` (τ = 2% of the box diagonal; a contour's segments, a mesh's faces); spurious "
+        "components are counted beyond specks (`ipfit.degree.rules.is_speck`). A pipeline that raised counts as F = 0."),
         "",
         "* **today**: `fit_adaptive(points)` (`ipfit fit FILE`), normals estimated"
         + (", `outliers=\"none\"`" if meta.get("outlier_keyword") else "") + ";",
