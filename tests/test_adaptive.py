@@ -155,8 +155,12 @@ def test_every_result_type_speaks_scipys_vocabulary(rng):
         assert isinstance(res.nit, int) and isinstance(res.nfev, int) and res.nfev > 0
         assert res.success is True and isinstance(res.message, str) and res.message
     assert adaptive.x is adaptive.polynomial.coefficients
-    assert adaptive.fun == pytest.approx(adaptive.at_degree(adaptive.selected_degree).distance)
-    assert adaptive.nit == len(adaptive.degrees)
+    chosen = adaptive.at_degree(adaptive.selected_degree)
+    assert adaptive.fun == chosen.fun and adaptive.distance == chosen.distance
+    # the default search adds the far-field term to the paper's distance: fun is what it minimised
+    assert adaptive.fun >= adaptive.distance * (1 - 1e-6)
+    assert adaptive.n_degrees == len(adaptive.degrees) >= 1
+    assert adaptive.nit == sum(d.nit for d in adaptive.degrees) > 0
     assert adaptive.nfev == sum(d.nfev for d in adaptive.degrees)
 
 

@@ -67,7 +67,10 @@ class DegreeResult(Result):
 
     Attributes
     ----------
-    x, fun : the coefficients (normalised coordinates) and the paper's distance at them.
+    x, fun : the coefficients (normalised coordinates) and the value the fixed-degree method
+        minimised at them (SciPy's meaning: the paper's distance plus any far-field term; the
+        paper's distance itself for a linear or custom fit, which minimise nothing of ours).
+    distance : the paper's distance at ``x`` (Eq. 4), without any extra term.
     nit, nfev : the fixed-degree method's iterations and objective evaluations (0 for a linear fit).
     success, message : whether the method reached a finite fit, and how it ended.
     degree, polynomial, measures : the fit and its :class:`~ipfit.fitting.objective.Measures`.
@@ -119,8 +122,10 @@ class AdaptiveResult(Result):
 
     Attributes
     ----------
-    x, fun : coefficients and paper's distance at the selected degree.
-    nit : degrees tried.  nfev : objective evaluations over all degrees.
+    x, fun, distance : coefficients, the minimised value and the paper's distance at the
+        selected degree (as on its :class:`DegreeResult`).
+    nit, nfev : iterations and objective evaluations over all degrees.
+    n_degrees : the number of degrees tried (``len(degrees)``).
     success : a degree was selected by the rule on a complete path (False when interrupted,
         or when the geometric rule found no clean degree).
     message : which degree was selected and why, in words.
@@ -144,6 +149,14 @@ class AdaptiveResult(Result):
     rule: str
     seconds: float
     options: SearchOptions | None = None
+
+    @property
+    def distance(self) -> float:
+        return self.at_degree(self.selected_degree).distance
+
+    @property
+    def n_degrees(self) -> int:
+        return len(self.degrees)
 
     @property
     def far_term_weight(self) -> float:
@@ -207,9 +220,9 @@ class _Fitter:
             poly = self.method(cloud.points, normals, degree)
             if not isinstance(poly, ImplicitPolynomial):
                 raise error("method", "a callable returning an ImplicitPolynomial", type(poly).__name__)
-            return poly, (), 0, 0, True, "custom fit"
+            return poly, (), 0, 0, True, "custom fit", None
         if self.method in LINEAR_METHODS:
-            return fit_linear(cloud, None, degree, self.method), (), 0, 0, True, "linear fit"
+            return fit_linear(cloud, None, degree, self.method), (), 0, 0, True, "linear fit", None
         options = cast(SearchOptions, options or self.options)  # a refinement method: check_settings gave options
 
         def report(state):
@@ -223,7 +236,7 @@ class _Fitter:
                         starts=starts or None, keep_clear=keep_clear, rng=self.rng,
                         callback=report if self.progress is not None else None)
         return (result.polynomial, tuple(result.solutions), result.nit, result.nfev, result.success,
-                result.message)
+                result.message, result.fun)
 
 
 def _embed(poly: ImplicitPolynomial, degree: int) -> NDArray[np.float64]:
@@ -375,7 +388,7 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
     name = method if isinstance(method, str) else getattr(method, "__name__", "custom")
     success = reason != "interrupted" and rule.success(results, index)
     return AdaptiveResult(
-        x=chosen.x, fun=chosen.fun, nit=len(results), nfev=sum(r.nfev for r in results), success=success,
+        x=chosen.x, fun=chosen.fun, nit=sum(r.nit for r in results), nfev=sum(r.nfev for r in results), success=success,
         message=message, polynomial=chosen.polynomial,
         selected_degree=chosen.degree, degrees=tuple(results), reason=reason, epsilon=epsilon, delta=delta,
         method=name, rule=rule.name, seconds=time.perf_counter() - start,
@@ -444,11 +457,11 @@ def _top_degree(n_points: int, dim: int, min_degree: int, max_degree: int | None
 def _fit_degree(fitter: _Fitter, cloud: Cloud, unit, degree, delta, measured: bool, ordered_contour, *, options=None,
                 extra_starts=(), method=None, keep_clear=None) -> DegreeResult:
     t0 = time.perf_counter()
-    poly, solutions, nit, nfev, success, message = fitter(cloud, unit, degree, options, extra_starts, method,
-                                                          keep_clear)
+    poly, solutions, nit, nfev, success, message, fun = fitter(cloud, unit, degree, options, extra_starts,
+                                                               method, keep_clear)
     m = compute_measures(poly, cloud.points, unit, delta=delta)
     poly = poly.with_coefficients(poly.coefficients, measures=m.to_dict())
     q = quality(poly, cloud, ordered_contour=ordered_contour) if measured else None
-    return DegreeResult(x=poly.coefficients, fun=float(m.distance), nit=nit, nfev=nfev, success=success,
+    return DegreeResult(x=poly.coefficients, fun=float(m.distance if fun is None else fun), nit=nit, nfev=nfev, success=success,
                         message=message, degree=degree, polynomial=poly, measures=m,
                         seconds=time.perf_counter() - t0, quality=q, solutions=solutions)
