@@ -266,3 +266,15 @@ def test_trace_silhouette_result_is_unchanged_by_the_in_place_steps():
     assert np.all(np.einsum("ij,ij->i", normals, points - [40, -30]) > 0)  # outward
     inverted, _ = trace_silhouette(1.0 - disc)  # bright background: the same shape
     assert abs(np.linalg.norm(inverted - [40, -30], axis=1).mean() - 20) < 0.5
+
+
+def test_any_real_number_is_taken_and_a_non_finite_one_refused():
+    from fractions import Fraction
+
+    from ipfit._utils.validation import check_real
+
+    assert check_real(Fraction(1, 4), "epsilon") == 0.25  # every numbers.Real converts through float()
+    assert check_real(np.float32(0.5), "epsilon") == 0.5 and check_real(3, "epsilon") == 3.0
+    for bad in (Fraction(10**400), 10**400, float("nan"), np.inf, True, "0.1", 1j):
+        with pytest.raises(ipfit.InvalidInputError, match="epsilon: expected a finite real number"):
+            check_real(bad, "epsilon")

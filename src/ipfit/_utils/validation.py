@@ -6,6 +6,7 @@ names the parameter, what was expected, what came and what to do.
 
 from __future__ import annotations
 
+import math
 import numbers
 from collections.abc import Iterator, Mapping
 from collections.abc import Set as AbstractSet
@@ -237,11 +238,17 @@ def check_degree(degree: Any, name: str = "degree") -> int:
 
 
 def check_real(value: Any, name: str) -> float:
-    # numpy's stubs do not know numbers.Real. Behaviour kept as is, though mypy has a point: a Real numpy
-    # cannot convert (fractions.Fraction) raises numpy's TypeError here, not InvalidInputError (issue 29).
-    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not np.isfinite(value):  # type: ignore[call-overload]
+    # float() first: any numbers.Real converts (fractions.Fraction, decimal-backed types), while
+    # numpy's isfinite refuses what it cannot cast.
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
         raise error(name, "a finite real number", _describe(value))
-    return float(value)
+    try:
+        result = float(value)
+    except (OverflowError, ValueError):  # a Real too big for a float (Fraction(10**400))
+        result = math.inf
+    if not math.isfinite(result):
+        raise error(name, "a finite real number", _describe(value))
+    return result
 
 
 def check_positive(value: Any, name: str) -> float:
