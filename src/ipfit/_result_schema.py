@@ -94,6 +94,12 @@ _TYPES = {
     "number": _Type("a number", _is_float),
     "number > 0": _Type("a finite number > 0", lambda v: _is_finite(v) and v > 0),
     "numbers": _Type("a list of finite numbers", lambda v: isinstance(v, list) and all(map(_is_finite, v))),
+    "indices": _Type("a list of whole numbers >= 0",
+                     lambda v: isinstance(v, list) and all(_is_whole(i) and _is_finite(i) and i >= 0 for i in v)),
+    "outlier mode": _Type('"auto", "none" or a number from 0 to 0.9',
+                          lambda v: v in ("auto", "none") or (_is_finite(v) and not isinstance(v, (bool, str))
+                                                              and 0 <= v < 0.9)),
+    "number >= 0 or null": _Type("a finite number >= 0, or null", lambda v: v is None or (_is_finite(v) and v >= 0)),
     "exponent rows": _Type("a list of rows of whole numbers >= 0, all of length 2 or all of length 3",
                            lambda v: isinstance(v, list) and bool(v) and all(isinstance(r, list) for r in v)
                            and len({len(r) for r in v}) == 1 and len(v[0]) in (2, 3)
@@ -207,6 +213,14 @@ SCHEMA: tuple[Key, ...] = (
     _k("adaptive.message", "string", "which degree was selected and why"),
     _k("adaptive.options", "object", "the search settings (ipfit.SearchOptions) of a refinement method; null for a "
        "linear fit"),
+    _k("outliers", "object", "the points the fit treated as outliers (fit_adaptive's outliers=, ipfit fit --outliers)"),
+    _k("outliers.mode", "outlier mode", '"auto" (found from the data), "none" (every point fitted) or the forced '
+       "share"),
+    _k("outliers.count", "integer >= 0", "points treated as outliers"),
+    _k("outliers.share", "number", "count / the points fitted (input.n_points)"),
+    _k("outliers.noise_scale", "number >= 0 or null", "the inliers' estimated noise (Gaussian sigma of their "
+       "offsets from the shape, data units); null when not estimated"),
+    _k("outliers.indices", "indices", "which points (0-based, in the input's order) were treated as outliers"),
     _k("quality", "object", "geometric quality of the final polynomial (ipfit score --write)"),
     *(_k(f"quality.{name}", t, m) for name, t, m in _QUALITY),
     _k("input", "object", "the data that was fitted"),
