@@ -334,3 +334,220 @@ def test_interrupted_run_is_not_called_fixed(ellipse_result):
     shape, result = ellipse_result
     stopped = dict(result, degrees=result["degrees"][:1], comparisons={}, adaptive={"reason": "interrupted"})
     assert plot_result(stopped, shape.points).axes[0].get_title().startswith("degree 2 (interrupted)")
+
+
+# -- outliers in their own colour -------------------------------------------------------------
+
+def planted(shape, result: dict, n_outliers: int = 20, seed: int = 0, n_points: bool = True):
+    """The shape's points with ``n_outliers`` uniform ones in its box grown by 20% a side, shuffled,
+    and ``result`` with an "outliers" section naming exactly those (and ``input.n_points``).
+
+    Returns ``(points, indices, result)``.
+    """
+    rng = np.random.default_rng(seed)
+    lo, hi = shape.points.min(axis=0), shape.points.max(axis=0)
+    stray = rng.uniform(lo - 0.2 * (hi - lo), hi + 0.2 * (hi - lo), (n_outliers, shape.points.shape[1]))
+    order = rng.permutation(len(shape.points) + n_outliers)
+    points = np.vstack([shape.points, stray])[order]
+    indices = np.flatnonzero(order >= len(shape.points))
+    data = json.loads(json.dumps(result))  # a copy, as read back from a file
+    data["outliers"] = {"mode": "auto", "count": n_outliers, "share": n_outliers / len(points), "noise_scale": 0.0,
+                        "indices": indices.tolist()}
+    if n_points:
+        data["input"] = {"source": "planted", "n_points": len(points)}
+    return points, indices, data
+
+
+def rows(points) -> set:
+    return {tuple(p) for p in np.asarray(points, dtype=float).tolist()}
+
+
+def scatters_by_colour(ax) -> dict:
+    """rgb → the rows drawn in that colour, over the axes' scatter collections (2D or 3D)."""
+    from matplotlib.colors import to_rgb
+    from mpl_toolkits.mplot3d.art3d import Path3DCollection
+
+    found: dict = {}
+    for c in ax.collections:
+        if isinstance(c, Path3DCollection):
+            xyz = np.column_stack(c._offsets3d)
+        elif type(c).__name__ == "PathCollection":
+            xyz = c.get_offsets()
+        else:
+            continue
+        (rgb,) = {tuple(np.round(f[:3], 6)) for f in c.get_facecolor()}  # one colour per collection
+        found.setdefault(rgb, set()).update(rows(xyz))
+    return {rgb: found[rgb] for rgb in found if found[rgb]}
+
+
+def rgb(color) -> tuple:
+    from matplotlib.colors import to_rgb
+
+    return tuple(np.round(to_rgb(color), 6))
+
+
+@pytest.fixture(scope="module")
+def fitted_ellipse():
+    """A real result: fit_adaptive's to_dict on an ellipse (3L, degrees 2 and 4)."""
+    from ipfit import fit_adaptive
+
+    shape = synthetic.ellipse(120)
+    return shape, fit_adaptive(shape.points, shape.normals, method="3l", max_degree=4, rule="geometric").to_dict()
+
+
+@pytest.fixture(scope="module")
+def fitted_sphere():
+    from ipfit import fit_adaptive
+
+    shape = synthetic.sphere(300)
+    return shape, fit_adaptive(shape.points, shape.normals, method="3l", max_degree=2).to_dict()
+
+
+def test_outlier_colour_stays_apart_for_colour_blind_readers():
+    """Against Machado et al. (2009)'s dichromacy simulations (severity 1, linear RGB) and CIEDE2000
+    (scikit-image): the outliers stay apart from every other colour of the figure and the viewer."""
+    from matplotlib.colors import to_rgb
+    from skimage.color import deltaE_ciede2000, rgb2lab
+
+    from ipfit.viz import plotting
+    from ipfit.viz.viewer import figure
+
+    machado = {"protanopia": [[0.152286, 1.052583, -0.204868], [0.114503, 0.786281, 0.099216],
+                              [-0.003882, -0.048116, 1.051998]],
+               "deuteranopia": [[0.367322, 0.860646, -0.227968], [0.280085, 0.672501, 0.047413],
+                                [-0.011820, 0.042940, 0.968881]],
+               "tritanopia": [[1.255528, -0.076749, -0.178779], [-0.078411, 0.930809, 0.147602],
+                              [0.004733, 0.691367, 0.303900]],
+               "normal vision": np.eye(3)}
+
+    def seen(color, matrix):
+        c = np.asarray(to_rgb(color))
+        linear = np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+        out = np.clip(np.asarray(matrix) @ linear, 0, 1)
+        return rgb2lab(np.where(out <= 0.0031308, 12.92 * out, 1.055 * out ** (1 / 2.4) - 0.055)[None, None])
+
+    others = [plotting.SPURIOUS_COLOR, plotting.POINT_COLOR, plotting.POINT_COLOR_3D, plotting.CURVE_COLOR,
+              plotting.SURFACE_COLOR, figure.SPURIOUS_COLOR, figure.POINT_COLOR, "#8c8c8c", figure.SURFACE_COLOR,
+              figure.CURVE_COLOR]
+    assert figure.OUTLIER_COLOR == plotting.OUTLIER_COLOR  # the same colour in the figure and the viewer
+    for vision, matrix in machado.items():
+        gaps = [float(deltaE_ciede2000(seen(plotting.OUTLIER_COLOR, matrix), seen(c, matrix))[0, 0]) for c in others]
+        assert min(gaps) > 15, (vision, gaps)  # 2-3 is a just noticeable difference
+        white = float(deltaE_ciede2000(seen(plotting.OUTLIER_COLOR, matrix), seen("white", matrix))[0, 0])
+        assert white > 25, vision
+
+
+def test_outliers_in_their_own_colour_2d(fitted_ellipse):
+    from ipfit.viz.plotting import OUTLIER_COLOR, POINT_COLOR, plot_result
+
+    shape, result = fitted_ellipse
+    points, indices, data = planted(shape, result)
+    inliers = np.delete(points, indices, axis=0)
+    fig = plot_result(data, points)
+    panels = [ax for ax in fig.axes if ax.collections]  # the fits; the smoothness panel has no points
+    assert len(panels) == len(fig.axes) - 1 >= 2
+    for ax in panels:
+        assert scatters_by_colour(ax) == {rgb(OUTLIER_COLOR): rows(points[indices]), rgb(POINT_COLOR): rows(inliers)}
+        assert [t.get_text() for t in ax.get_legend().get_texts()] == ["outliers (20)"]
+    # the same figure without the section: every point in the data colour, no legend
+    fig = plot_result(result, points)
+    assert scatters_by_colour(fig.axes[0]) == {rgb(POINT_COLOR): rows(points)} and fig.axes[0].get_legend() is None
+
+
+def test_outliers_in_their_own_colour_3d(fitted_sphere):
+    """Every outlier is drawn (an outlier's gradient says nothing of its side); the data only on the near side."""
+    from ipfit.viz.plotting import OUTLIER_COLOR, POINT_COLOR_3D, plot_result
+
+    shape, result = fitted_sphere
+    points, indices, data = planted(shape, result, n_outliers=30, seed=1)
+    fig = plot_result(data, points, resolution=20)
+    (ax,) = fig.axes
+    drawn = scatters_by_colour(ax)
+    assert set(drawn) == {rgb(OUTLIER_COLOR), rgb(POINT_COLOR_3D)}
+    assert drawn[rgb(OUTLIER_COLOR)] == rows(points[indices])
+    inliers = rows(np.delete(points, indices, axis=0))
+    assert drawn[rgb(POINT_COLOR_3D)] <= inliers and 0.3 < len(drawn[rgb(POINT_COLOR_3D)]) / len(inliers) < 0.7
+    assert [t.get_text() for t in ax.get_legend().get_texts()] == ["outliers (30)"]
+
+
+@pytest.mark.parametrize("case", ["one row fewer", "recorded count", "index beyond the rows"])
+def test_outliers_on_other_rows_warn_once_and_draw_all_as_data(fitted_ellipse, case):
+    from ipfit import IpfitWarning
+    from ipfit.viz.plotting import POINT_COLOR, plot_result
+
+    shape, result = fitted_ellipse
+    points, indices, data = planted(shape, result, n_points=case == "recorded count")
+    if case == "recorded count":  # input.n_points says 140 were fitted: 145 rows are another cloud
+        points = np.vstack([points, shape.points[:5]])
+        why = "it fitted 140 points, but 145 points were given"
+    elif case == "one row fewer":  # no input: the share (20 of 140) tells the rows apart
+        points = points[np.arange(len(points)) != (indices[0] + 1)]
+        why = "share of 0.142857 of the points it fitted, but 139 points were given"
+    else:
+        data["outliers"].pop("share")
+        points = points[: indices[-1]]
+        why = f"indices run up to {indices[-1]}, but {indices[-1]} points were given"
+    with pytest.warns(IpfitWarning) as caught:
+        fig = plot_result(data, points)
+    assert len(caught) == 1 and why in str(caught[0].message)
+    for ax in (a for a in fig.axes if a.collections):
+        assert scatters_by_colour(ax) == {rgb(POINT_COLOR): rows(points)} and ax.get_legend() is None
+
+
+def test_a_result_without_outliers_does_not_warn(fitted_ellipse, recwarn):
+    from ipfit.viz.plotting import plot_result
+
+    shape, result = fitted_ellipse
+    points, _, data = planted(shape, result)
+    data["outliers"] = {"mode": "none", "count": 0, "share": 0.0, "noise_scale": None, "indices": []}
+    plot_result(data, points[:-3])  # no outliers to place: the row count does not matter
+    plot_result(result, points[:-3])
+    assert not [w for w in recwarn if "outliers" in str(w.message)]
+
+
+def test_spurious_pieces_are_judged_against_the_inliers():
+    """A zero-set oval through the outliers only is spurious for the fit: red once they are marked."""
+    from matplotlib.colors import to_rgba
+
+    from ipfit.viz.plotting import SPURIOUS_COLOR, plot_result
+    from ipfit.zeroset.extract import extract_zero_set
+
+    poly = _two_ovals()
+    zs = extract_zero_set(poly, bounds=[[-2, 2], [-1, 1]])
+    right = np.concatenate([c for c in zs.curves if c[:, 0].mean() > 0])[::3]
+    left = np.concatenate([c for c in zs.curves if c[:, 0].mean() < 0])[::12]
+    points = np.vstack([right, left])
+    data = poly.to_dict()
+    data["input"] = {"source": "two ovals", "n_points": len(points)}
+    data["outliers"] = {"mode": "auto", "count": len(left), "share": len(left) / len(points), "noise_scale": None,
+                        "indices": list(range(len(right), len(points)))}
+
+    def left_is_red(result) -> bool:
+        (ax,) = plot_result(result, points, margin=2.0).axes
+        return {line.get_xdata().mean() < 0: to_rgba(line.get_color()) == to_rgba(SPURIOUS_COLOR)
+                for line in ax.lines}[True]
+
+    assert left_is_red(data)
+    assert not left_is_red({k: v for k, v in data.items() if k != "outliers"})  # data near it: not spurious
+
+
+def test_mesh_outliers_leave_the_faces_that_touch_them(fitted_sphere):
+    """With faces, the data shown is sampled from the faces free of outliers; the outlier vertices are drawn apart."""
+    import trimesh
+
+    from ipfit.viz.plotting import OUTLIER_COLOR, POINT_COLOR_3D, plot_result
+
+    shape, result = fitted_sphere
+    mesh = trimesh.creation.icosphere(subdivisions=2)
+    vertices = np.array(mesh.vertices)
+    outliers = np.array([0, 7, 30])
+    vertices[outliers] *= 1.5  # pulled off the unit sphere
+    data = json.loads(json.dumps(result))
+    data["input"] = {"source": "icosphere", "n_points": len(vertices)}
+    data["outliers"] = {"mode": "auto", "count": 3, "share": 3 / len(vertices), "noise_scale": None,
+                        "indices": outliers.tolist()}
+    (ax,) = plot_result(data, vertices, faces=mesh.faces, resolution=20).axes
+    drawn = scatters_by_colour(ax)
+    assert drawn[rgb(OUTLIER_COLOR)] == rows(vertices[outliers])
+    radii = np.linalg.norm(np.array(sorted(drawn[rgb(POINT_COLOR_3D)])), axis=1)
+    assert len(radii) > 300 and radii.max() < 1.0 + 1e-9  # samples of untouched faces: inside the unit sphere

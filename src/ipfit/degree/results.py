@@ -11,6 +11,9 @@ through :func:`validate_result`, so a corrupt file gives one line naming the bad
   the fit of every degree tried, the comparison fits and the data's box;
 * :func:`dumps_result` / :func:`write_result` — a dict → validated JSON text / file.
 
+A view also reads the points a fit treated as outliers (:attr:`ResultView.outlier_indices`)
+and matches them to the data drawn with it (:meth:`ResultView.outlier_mask`).
+
 >>> from ipfit.datasets import synthetic
 >>> data = synthetic.circle().polynomial.to_dict()
 >>> data["degrees"] = [{"degree": 2, "smoothness": 1.0, "coefficients": data["coefficients"]}]
@@ -26,7 +29,9 @@ ipfit.exceptions.InvalidInputError: result: "selected_degree": expected a whole 
 from __future__ import annotations
 
 import json
+import math
 import os
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
@@ -50,7 +55,7 @@ from .._result_schema import (
 )
 from .._utils.atomic import write_text_atomic
 from .._utils.validation import error
-from ..exceptions import InvalidInputError, ReadError
+from ..exceptions import InvalidInputError, IpfitWarning, ReadError
 from ..polynomial import ImplicitPolynomial, Normalization, to_jsonable
 
 __all__ = ["FORMAT_NAME", "FORMAT_VERSION", "MAX_DEGREE", "MAX_COORDINATE", "MAX_DEPTH", "SCHEMA", "Key",
@@ -164,6 +169,60 @@ class ResultView:
     def input(self) -> Mapping[str, Any]:
         """The ``input`` record (source, path, n_points, normals); empty when absent."""
         return self.data.get("input") or {}
+
+    @property
+    def outliers(self) -> Mapping[str, Any]:
+        """The ``outliers`` record (mode, count, share, noise_scale, indices); empty when absent."""
+        return self.data.get("outliers") or {}
+
+    @property
+    def outlier_indices(self) -> NDArray[np.int64] | None:
+        """The points the fit treated as outliers (0-based, into the fitted points, sorted), or
+        None when the result records no indices (no ``outliers`` section, or one without them)."""
+        indices = self.outliers.get("indices")
+        if indices is None:
+            return None
+        # The schema has checked them: whole numbers >= 0 (2.0 included) that float64 holds. Clipped
+        # so that 1e300 stays a huge index (beyond any cloud) instead of overflowing int64.
+        return np.unique(np.clip(np.asarray(indices, dtype=np.float64), 0, 2.0 ** 62).astype(np.int64))
+
+    def outlier_mask(self, n_points: int) -> NDArray[np.bool_] | None:
+        """Which of ``n_points`` rows of data are the recorded outliers, or None.
+
+        None when the result records no outliers (no section, count 0 or no indices), and
+        when the rows cannot be the fitted points: then an :class:`IpfitWarning` says why
+        (the caller draws every point as data). The indices count the *fitted* points, so
+        the rows must be exactly those: ``input.n_points`` of them when the result records
+        it; without it (a dict from :meth:`AdaptiveResult.to_dict`), every index must fall
+        among the rows and, when the result records the share, ``count / n_points`` must be
+        that share (to float rounding: one row more or less changes it by 1/n). A subsample
+        or another file fails one of these.
+        """
+        record = self.outliers
+        indices = self.outlier_indices
+        if indices is None or not len(indices) or record.get("count", len(indices)) == 0:
+            return None
+        n_points = int(n_points)
+        count = int(record.get("count", len(indices)))
+        fitted = self.input.get("n_points")
+        share = record.get("share")
+        why = None
+        if fitted is not None and int(fitted) != n_points:
+            why = f"it fitted {int(fitted)} points"
+        elif indices[-1] >= n_points:
+            why = f"its outlier indices run up to {int(indices[-1])}"
+        elif fitted is None and isinstance(share, (int, float)) and not math.isclose(share, count / n_points,
+                                                                                   rel_tol=1e-9):
+            # share = count / n exactly (to float rounding): one row more or less changes it by 1/n
+            why = f"its {count} outliers are a share of {share:.6g} of the points it fitted"
+        if why is not None:
+            warnings.warn(f"{self.source}: outliers not marked: {why}, but {n_points} points were given, so "
+                          "they cannot be the fitted points; every point is drawn as data. Pass the points "
+                          "that were fitted to see the outliers.", IpfitWarning, stacklevel=3)
+            return None
+        mask = np.zeros(n_points, dtype=bool)
+        mask[indices] = True
+        return mask
 
     def fit(self, degree: int | None = None, name: str = "degree") -> ImplicitPolynomial:
         """The final polynomial, or the fit of ``degree`` from the per-degree table.

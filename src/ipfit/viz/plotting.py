@@ -6,7 +6,8 @@ makes a new figure through pyplot (on the Agg backend when there is no display).
 with the data, the smoothness-versus-degree curve, the classic and 3L fits at the selected
 degree) without touching pyplot's global state, and can save it atomically. Pieces of a
 zero set with no data near them (spurious components, see :mod:`ipfit.zeroset.quality`) are drawn
-in :data:`SPURIOUS_COLOR`.
+in :data:`SPURIOUS_COLOR`; the points a fit treated as outliers (the result's ``outliers``
+section) in :data:`OUTLIER_COLOR`, with a legend entry "outliers (N)".
 
 matplotlib is imported only when a function here is called.
 """
@@ -40,6 +41,7 @@ __all__ = [
     "check_figure_path",
     "FIGURE_FORMATS",
     "SPURIOUS_COLOR",
+    "OUTLIER_COLOR",
 ]
 
 CURVE_COLOR = "#1f5fbf"
@@ -48,6 +50,12 @@ SPURIOUS_COLOR = "#d62728"
 SPURIOUS_ALPHA = 0.25  # 3D: spurious pieces are see-through
 POINT_COLOR = "0.45"
 POINT_COLOR_3D = "#303030"
+#: The points a fit treated as outliers, in the figure and the viewer: the amber of IBM's
+#: colour-blind-safe palette. Under simulated protanopia, deuteranopia and tritanopia (Machado
+#: et al. 2009) it stays at a CIEDE2000 difference of 16 or more from the grey data, the blue
+#: zero set and the red spurious pieces (a light yellow where the reds turn a dark olive);
+#: Okabe and Ito's orange came within 12 of the viewer's red.
+OUTLIER_COLOR = "#ffb000"
 METHOD_TITLES = {"lstsq": "classic linear", "3l": "3L", "ridge": "3L + ridge", "taubin": "Taubin",
                  "gradient_one": "gradient-one", "de": "DE", "pso": "PSO", "de+polish": "DE + polish",
                  "pso+polish": "PSO + polish", "polish": "polish (L-BFGS from the best seed)"}
@@ -167,22 +175,64 @@ def display_points(points: ArrayLike, faces: ArrayLike | None = None, count: int
     return np.asarray(samples, dtype=np.float64)
 
 
+def _outlier_flags(outliers: ArrayLike | None, n_points: int) -> NDArray[np.bool_] | None:
+    """``outliers`` (a mask over the points, or their indices) as a mask; None when it marks none."""
+    if outliers is None:
+        return None
+    given = np.asarray(outliers)
+    if given.dtype == bool:
+        if given.shape != (n_points,):
+            raise error("outliers", f"{n_points} flags, one per point, or indices", f"{given.size} flags")
+        return given if given.any() else None
+    if given.size == 0:
+        return None
+    if given.ndim != 1 or given.dtype.kind not in "iu" or given.min() < 0 or given.max() >= n_points:
+        raise error("outliers", f"a mask of {n_points} flags or indices from 0 to {n_points - 1}",
+                    f"an array of shape {given.shape} and dtype {given.dtype}"
+                    + (f" from {given.min()} to {given.max()}" if given.dtype.kind in "iu" and given.ndim == 1 else ""),
+                    "Use the result's outlier indices (ResultView.outlier_indices).")
+    flags = np.zeros(n_points, dtype=bool)
+    flags[given] = True
+    return flags
+
+
+def _outlier_legend(ax) -> None:
+    ax.legend(loc="upper right", fontsize="small", frameon=False, markerscale=2.0, handletextpad=0.2)
+
+
 def plot_points(points: ArrayLike, ax=None, *, max_points: int = 4000, size: float | None = None,
-                color=None, **kwargs):
-    """Scatter the data (every k-th point beyond ``max_points``); returns ``ax``."""
+                color=None, outliers: ArrayLike | None = None, outlier_color=OUTLIER_COLOR, **kwargs):
+    """Scatter the data (every k-th point beyond ``max_points``); returns ``ax``.
+
+    ``outliers`` (a mask over the points, or their indices) are drawn over the others in
+    ``outlier_color``, twice the area, as their own collection labelled "outliers (N)"
+    (N counts them all, drawn or not) with a legend.
+    """
     pts = as_points(points)
     if ax is None:
         ax = _new_axes(pts.shape[1])
+    flags = _outlier_flags(outliers, len(pts))
+    dim = pts.shape[1]
+    size = size if size is not None else 2.0 if dim == 3 else 3.0
+    color = color if color is not None else POINT_COLOR_3D if dim == 3 else POINT_COLOR
+    # One stride for both kinds: the picture keeps their proportions, and at most max_points in all.
     stride = max(1, math.ceil(len(pts) / max_points))
-    shown = pts[::stride]
-    if pts.shape[1] == 3:
-        ax.scatter(shown[:, 0], shown[:, 1], shown[:, 2], s=size if size is not None else 2.0,
-                   c=color if color is not None else POINT_COLOR_3D, alpha=0.8, depthshade=False, linewidths=0,
+    if flags is None:
+        _scatter(ax, pts[::stride], size, color, **kwargs)
+        return ax
+    if not flags.all():
+        _scatter(ax, pts[~flags][::stride], size, color, **kwargs)
+    _scatter(ax, pts[flags][::stride], 2 * size, outlier_color, label=f"outliers ({int(flags.sum())})", **kwargs)
+    _outlier_legend(ax)
+    return ax
+
+
+def _scatter(ax, shown: NDArray, size: float, color, **kwargs) -> None:
+    if shown.shape[1] == 3:
+        ax.scatter(shown[:, 0], shown[:, 1], shown[:, 2], s=size, c=color, alpha=0.8, depthshade=False, linewidths=0,
                    **kwargs)
     else:
-        ax.scatter(shown[:, 0], shown[:, 1], s=size if size is not None else 3.0,
-                   c=color if color is not None else POINT_COLOR, linewidths=0, zorder=1, **kwargs)
-    return ax
+        ax.scatter(shown[:, 0], shown[:, 1], s=size, c=color, linewidths=0, **{"zorder": 1, **kwargs})
 
 
 def _eye(view: tuple[float, float], up: str) -> NDArray[np.float64]:
@@ -224,7 +274,8 @@ def _frame(ax, bounds: NDArray, dim: int, axis_off: bool) -> None:
 def plot_curve(poly: ImplicitPolynomial | None, points: ArrayLike | None = None, ax=None, *,
                zero_set: ZeroSet | None = None, bounds: ArrayLike | None = None, margin: float = 0.25,
                resolution: int | None = None, color=CURVE_COLOR, linewidth: float = 1.6, label: str | None = None,
-               spurious: ArrayLike | None = None, spurious_color=SPURIOUS_COLOR, axis_off: bool = False):
+               spurious: ArrayLike | None = None, spurious_color=SPURIOUS_COLOR, outliers: ArrayLike | None = None,
+               outlier_color=OUTLIER_COLOR, axis_off: bool = False):
     """Draw the zero set of a 2D polynomial (and the data points, if given); returns ``ax``.
 
     Parameters
@@ -235,19 +286,24 @@ def plot_curve(poly: ImplicitPolynomial | None, points: ArrayLike | None = None,
     bounds, margin, resolution : see :func:`ipfit.zeroset.extract.extract_zero_set`.
     spurious : one flag per curve of the zero set; flagged curves are drawn in
         ``spurious_color`` (see :func:`ipfit.zeroset.quality.spurious_components`).
+    outliers : a mask over ``points``, or their indices: drawn in ``outlier_color``, with a
+        legend entry "outliers (N)" (see :func:`plot_points`).
     """
     pts = None if points is None else as_points(points, dims=(2,))
     zs = _zero_set_for(poly, zero_set, pts, bounds, margin, resolution)
     if zs.dim != 2:
         raise error("poly", "a 2D polynomial (use plot_surface for 3D)", f"a {zs.dim}D one")
     flags = _spurious_flags(spurious, zs)
+    marked = None if pts is None else _outlier_flags(outliers, len(pts))
     if ax is None:
         ax = _new_axes(2)
     if pts is not None:
-        plot_points(pts, ax)
+        plot_points(pts, ax, outliers=marked, outlier_color=outlier_color)
     for i, curve in enumerate(zs.curves):
         ax.plot(curve[:, 0], curve[:, 1], color=spurious_color if flags[i] else color, lw=linewidth, zorder=2,
                 label=label if i == 0 else None)
+    if marked is not None:  # again, with the curve's label
+        _outlier_legend(ax)
     _frame(ax, zs.bounds, 2, axis_off)
     return ax
 
@@ -280,6 +336,7 @@ def plot_surface(poly: ImplicitPolynomial | None, points: ArrayLike | None = Non
                  zero_set: ZeroSet | None = None, bounds: ArrayLike | None = None, margin: float = 0.25,
                  resolution: int | None = None, max_faces: int = 30000, color=SURFACE_COLOR,
                  show_points: bool = False, spurious: ArrayLike | None = None, spurious_color=SPURIOUS_COLOR,
+                 outliers: ArrayLike | None = None, outlier_color=OUTLIER_COLOR,
                  view: tuple[float, float] = (20.0, -60.0), up: str = "z", axis_off: bool = False):
     """Draw the zero set of a 3D polynomial as a shaded mesh; returns ``ax`` (a 3D axes).
 
@@ -294,6 +351,9 @@ def plot_surface(poly: ImplicitPolynomial | None, points: ArrayLike | None = Non
         when it has no polynomial).
     spurious : one flag per component of the zero set (as ``zero_set.component_labels``);
         flagged components are drawn in ``spurious_color``.
+    outliers : a mask over ``points``, or their indices: drawn (all of them, on either side
+        of the surface: they are off it) in ``outlier_color``, with a legend entry
+        "outliers (N)" (see :func:`plot_points`).
     view : (elevation, azimuth) in degrees.
     up : the axis drawn vertically, 'x', 'y' or 'z' (scanned meshes such as the bunny are y-up).
     """
@@ -328,11 +388,14 @@ def plot_surface(poly: ImplicitPolynomial | None, points: ArrayLike | None = Non
                 ax.add_collection3d(Poly3DCollection(vertices[faces[part]], facecolors=colors, edgecolors="none",
                                                      linewidths=0, antialiased=False, zorder=zorder))
     if show_points and pts is not None:
+        marked = _outlier_flags(outliers, len(pts))
         surface = poly if poly is not None else zs.polynomial
         if surface is not None:
-            pts = pts[_facing_camera(pts, surface, view, up)]
+            # An outlier's gradient says nothing about the side it is on: every outlier is drawn.
+            keep = _facing_camera(pts, surface, view, up) | (False if marked is None else marked)
+            pts, marked = pts[keep], None if marked is None else marked[keep]
         if len(pts):
-            plot_points(pts, ax, zorder=3)
+            plot_points(pts, ax, zorder=3, outliers=marked, outlier_color=outlier_color)
     _camera(ax, view, up)
     _frame(ax, zs.bounds, 3, axis_off)
     return ax
@@ -382,6 +445,19 @@ def _panel_bounds(view: ResultView, points: NDArray | None, margin: float) -> ND
     if view.bounds is not None:
         return data_bounds(view.bounds.T, margin)
     return default_bounds(view.polynomial, margin)
+
+
+def without_outliers(points: NDArray, faces: NDArray | None,
+                      outliers: NDArray[np.bool_]) -> tuple[NDArray, NDArray | None]:
+    """The data less its outliers: their rows, and the faces touching one (the others renumbered).
+
+    Shared with the viewer (not public): both judge spurious pieces against what the fit kept.
+    """
+    keep = ~outliers
+    if faces is None:
+        return points[keep], None
+    kept = (np.cumsum(keep) - 1)[faces[keep[faces].all(axis=1)]]
+    return points[keep], kept if len(kept) else None
 
 
 def _number(value, digits: int = 3) -> str | None:
@@ -434,11 +510,21 @@ def plot_result(result, points: ArrayLike | None = None, path: str | os.PathLike
     components (no data within τ, as counted by :func:`ipfit.zeroset.quality.quality`) are drawn
     in :data:`SPURIOUS_COLOR`.
 
+    When the result records outliers (its ``outliers`` section, count > 0) and ``points``
+    are the points it fitted, the outliers are drawn in :data:`OUTLIER_COLOR` with a legend
+    entry "outliers (N)", and spurious components are judged against the other points (the
+    data the fit kept, as its own quality was). The points must be exactly the fitted ones:
+    ``input.n_points`` rows when the result records it, else rows that every index falls
+    among and whose count the recorded share matches (see
+    :meth:`ipfit.degree.results.ResultView.outlier_mask`). Otherwise an
+    :class:`~ipfit.exceptions.IpfitWarning` says why and every point is drawn as data.
+
     Parameters
     ----------
     result : path to a result JSON, a dict, or an ImplicitPolynomial (see
         :func:`ipfit.degree.results.load_result`).
-    points : the data (drawn with the zero sets; its box frames every panel).
+    points : the data (drawn with the zero sets; its box frames every panel), in the order
+        it was fitted in.
     path : where to save the figure (atomically; format by extension, :data:`FIGURE_FORMATS`).
     faces : triangles over ``points`` when the data is a mesh: the faces are sampled for
         display, and spurious components are judged against them.
@@ -463,6 +549,11 @@ def plot_result(result, points: ArrayLike | None = None, path: str | os.PathLike
     face_array = None if faces is None or pts is None or dim != 3 else as_faces(faces, len(pts))
     if face_array is not None and len(face_array) == 0:
         face_array = None
+    outliers = None if pts is None else view_.outlier_mask(len(pts))  # warns once when the rows do not match
+    if outliers is not None and outliers.all():
+        outliers = None  # nothing left to call the data: draw it as data
+    # kept: the data the fit kept (every point, or the inliers), which spurious pieces are judged against
+    kept, kept_faces = (pts, face_array) if outliers is None else without_outliers(pts, face_array, outliers)
     box = _panel_bounds(view_, pts, margin)
     resolution = resolution or _PLOT_RESOLUTION[dim]
     panels = _panels(view_)
@@ -473,8 +564,13 @@ def plot_result(result, points: ArrayLike | None = None, path: str | os.PathLike
     fig = Figure(figsize=size, layout="constrained")
     if dim == 3:
         import mpl_toolkits.mplot3d  # noqa: F401  registers the 3d projection
-    shown = None if pts is None else display_points(pts, face_array)
-    ordered = dim == 2 and pts is not None and looks_like_contour(pts)
+    shown = shown_outliers = None
+    if kept is not None:
+        shown = display_points(kept, kept_faces)
+        if outliers is not None:
+            shown_outliers = np.repeat([False, True], [len(shown), int(outliers.sum())])
+            shown = np.vstack([shown, pts[outliers]])
+    ordered = dim == 2 and kept is not None and looks_like_contour(kept)
     for index, (label, kind, payload) in enumerate(panels):
         letter = f"({chr(ord('a') + index)}) " if 1 < len(panels) and index < 26 else ""
         ax = fig.add_subplot(nrows, ncols, index + 1, projection="3d" if dim == 3 and kind == "fit" else None)
@@ -483,15 +579,15 @@ def plot_result(result, points: ArrayLike | None = None, path: str | os.PathLike
             if trim is not None and pts is not None:
                 zs = zs.trimmed(pts, trim, faces=face_array)
             flags = None
-            if mark_spurious and pts is not None and not zs.is_empty:
-                flags = spurious_components(zs, pts, faces=face_array, ordered_contour=ordered)
+            if mark_spurious and kept is not None and not zs.is_empty:
+                flags = spurious_components(zs, kept, faces=kept_faces, ordered_contour=ordered)
                 if flags.any():
                     label += f"\n{int(flags.sum())} spurious piece{'s' if flags.sum() > 1 else ''} (red)"
             if dim == 2:
-                plot_curve(payload, shown, ax, zero_set=zs, spurious=flags, axis_off=True)
+                plot_curve(payload, shown, ax, zero_set=zs, spurious=flags, outliers=shown_outliers, axis_off=True)
             else:
-                plot_surface(payload, shown, ax, zero_set=zs, spurious=flags, show_points=True, view=view, up=up,
-                             max_faces=max_faces, axis_off=True)
+                plot_surface(payload, shown, ax, zero_set=zs, spurious=flags, outliers=shown_outliers,
+                             show_points=True, view=view, up=up, max_faces=max_faces, axis_off=True)
         else:
             g, s = zip(*payload, strict=True)  # payload: (degree, smoothness) pairs
             plot_smoothness(g, s, view_.selected_degree, ax)

@@ -2,9 +2,11 @@
 
 The page holds one plotly figure: on the left the data and the zero set of every degree
 tried (a rotatable 3D scene, or pannable 2D axes), a slider that switches the degree shown,
-the spurious components of each zero set in their own colour and, behind a legend click,
-the normals as short segments; on the right why the degree was selected, the per-degree
-table and the smoothness (and F-score) against the degree. Hovering a data point shows its
+the spurious components of each zero set in their own colour, the points the fit treated
+as outliers (the result's ``outliers`` section) as a trace of their own in
+:data:`OUTLIER_COLOR` and, behind a legend click, the normals as short segments; on the
+right why the degree was selected, the per-degree table and the smoothness (and F-score)
+against the degree. Hovering a data point shows its
 index and the first-order distance |f| / ‖∇f‖ at the degree shown.
 
 plotly's JavaScript is inlined, so the file works offline. Meshes are decimated for display
@@ -32,6 +34,7 @@ from .figure import (
                      CURVE_COLOR,
                      MAX_FACES,
                      MAX_POINTS,
+                     OUTLIER_COLOR,
                      REASONS,
                      SPURIOUS_COLOR,
                      SURFACE_COLOR,
@@ -41,4 +44,4 @@ from .geometry import decimate, spurious_flags
 from .pages import index_page, page, to_html, write_html
 
 __all__ = ["result_figure", "to_html", "write_html", "index_page", "decimate", "spurious_flags", "page", "MAX_FACES",
-           "MAX_POINTS", "REASONS", "SPURIOUS_COLOR", "SURFACE_COLOR", "CURVE_COLOR", "CURRENT_ROW"]
+           "MAX_POINTS", "OUTLIER_COLOR", "REASONS", "SPURIOUS_COLOR", "SURFACE_COLOR", "CURVE_COLOR", "CURRENT_ROW"]

@@ -11,14 +11,15 @@ from typing import Any, NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..._utils.validation import as_normals, as_points, check_choice, check_int, check_positive, error
-from ...degree.results import load_result, result_view
+from ..._utils.validation import as_faces, as_normals, as_points, check_choice, check_int, check_positive, error
+from ...degree.results import ResultView, load_result, result_view
 from ...exceptions import IpfitError
 from ...polynomial import ImplicitPolynomial
 from ...zeroset.extract import ZeroSet, data_bounds, default_bounds, extract_zero_set
+from ..plotting import OUTLIER_COLOR, without_outliers
 from .geometry import decimate, spurious_flags
 
-__all__ = ["result_figure"]
+__all__ = ["result_figure", "OUTLIER_COLOR"]
 
 MAX_FACES = 15000      # per degree: enough to read the shape, small enough for a page
 MAX_POINTS = 40000     # data points drawn (every k-th beyond); the full bunny has 35 947
@@ -66,8 +67,7 @@ class _Fit(NamedTuple):
     entry: Mapping[str, Any]
 
 
-def _fits(data: dict) -> tuple[list[_Fit], int | None]:
-    view = result_view(data)
+def _fits(view: ResultView, data: dict) -> tuple[list[_Fit], int | None]:
     fits = [_Fit(d.degree, d.polynomial, d.entry) for d in view.degrees if d.polynomial is not None]
     if not fits:  # a plain fit: one degree, its measures at the top level
         entry = {"degree": view.polynomial.degree, **(data.get("measures") or {})}
@@ -177,15 +177,31 @@ def _point_template(degree: int, column: int) -> str:
     return f"point %{{customdata[0]}}<br>|f|/‖∇f‖ at degree {degree}: %{{customdata[{column}]:.3g}}<extra></extra>"
 
 
-def _points_trace(go, pts: NDArray, fits: list[_Fit], current: int, max_points: int):
-    index = np.arange(0, len(pts), max(1, math.ceil(len(pts) / max_points)))
-    custom = np.column_stack([index] + [f.polynomial.taubin_distance(pts[index]) for f in fits])
+def _points_traces(go, pts: NDArray, outliers: NDArray[np.bool_] | None, fits: list[_Fit], current: int,
+                   max_points: int) -> list:
+    """The data points, and the outliers (when marked) as a trace of their own, "outliers (N)".
+
+    Every k-th point of each kind beyond ``max_points`` in all; the hover shows a point's
+    index in the data, whichever trace it is in.
+    """
     dim = pts.shape[1]
-    marker = dict(size=1.0 if dim == 3 else 3, color=POINT_COLOR if dim == 3 else "#8c8c8c",
-                  opacity=0.5 if dim == 3 else 1.0)
-    return _scatter(go, dim, pts[index].astype(np.float32), mode="markers", marker=marker, name="data points",
-                    customdata=custom.astype(np.float32),
-                    hovertemplate=_point_template(fits[current].degree, current + 1))
+    stride = max(1, math.ceil(len(pts) / max_points))
+    marked = np.zeros(len(pts), dtype=bool) if outliers is None else outliers
+    kinds = [("data points", np.flatnonzero(~marked)[::stride],
+              dict(size=1.0 if dim == 3 else 3, color=POINT_COLOR if dim == 3 else "#8c8c8c",
+                   opacity=0.5 if dim == 3 else 1.0))]
+    if marked.any():
+        kinds.append((f"outliers ({int(marked.sum())})", np.flatnonzero(marked)[::stride],
+                      dict(size=2.5 if dim == 3 else 5, color=OUTLIER_COLOR, opacity=0.9 if dim == 3 else 1.0)))
+    traces = []
+    for name, index, marker in kinds:
+        if not len(index):
+            continue
+        custom = np.column_stack([index] + [f.polynomial.taubin_distance(pts[index]) for f in fits])
+        traces.append(_scatter(go, dim, pts[index].astype(np.float32), mode="markers", marker=marker, name=name,
+                               customdata=custom.astype(np.float32),
+                               hovertemplate=_point_template(fits[current].degree, current + 1)))
+    return traces
 
 
 def _normals_trace(go, pts: NDArray, unit: NDArray):
@@ -234,6 +250,12 @@ def result_figure(result, points: ArrayLike | None = None, *, faces: ArrayLike |
         normalisation) and spurious components are not marked.
     faces : the data's triangles, when a mesh (the spurious test then measures to them).
     normals : (N, dim) normals, drawn as short segments (hidden until clicked in the legend).
+
+    When the result records outliers and ``points`` are the points it fitted, the outliers
+    are a trace of their own, "outliers (N)", in :data:`OUTLIER_COLOR` (click it in the
+    legend to hide them), and spurious components are judged against the other points;
+    when the rows cannot be the fitted ones, a warning says why and every point is drawn as
+    data (the rule of :func:`ipfit.viz.plotting.plot_result`).
     ordered_contour : 2D points in order along a contour (default: detected).
     margin, resolution : the box and grid of :func:`ipfit.extract_zero_set` (default the
         same as the fit's quality measures, so the components match its counts).
@@ -246,7 +268,8 @@ def result_figure(result, points: ArrayLike | None = None, *, faces: ArrayLike |
     """
     go = _plotly()
     data = _as_dict(result)
-    fits, selected = _fits(data)
+    view = result_view(data)
+    fits, selected = _fits(view, data)
     dim = fits[0].polynomial.dim
     up = check_choice(up, "up", ("x", "y", "z"))
     max_points = check_int(max_points, "max_points", minimum=1)
@@ -261,17 +284,25 @@ def result_figure(result, points: ArrayLike | None = None, *, faces: ArrayLike |
         box = data_bounds(np.asarray(data["bounds"], dtype=np.float64).reshape(dim, 2).T, margin)
     else:
         box = default_bounds(fits[0].polynomial, margin)
-    if pts is not None and ordered_contour is None:
+    outliers = None if pts is None else view.outlier_mask(len(pts))  # warns once when the rows do not match
+    if outliers is not None and outliers.all():
+        outliers = None  # nothing left to call the data: draw it as data
+    # kept: the data the fit kept (every point, or the inliers), which spurious pieces are judged against
+    kept, kept_faces = pts, faces
+    if pts is not None and outliers is not None:
+        kept, kept_faces = without_outliers(pts, None if faces is None else as_faces(faces, len(pts)), outliers)
+    if kept is not None and ordered_contour is None:
         from ...zeroset.quality import looks_like_contour
 
-        ordered_contour = dim == 2 and looks_like_contour(pts)
+        ordered_contour = dim == 2 and looks_like_contour(kept)
     current = next((i for i, f in enumerate(fits) if f.degree == selected), len(fits) - 1)
 
     # (trace, owner): owner is the index of the degree the trace belongs to, -1 for a trace
     # always shown, None for one the slider leaves alone (the normals, toggled in the legend)
     layers: list[tuple[Any, int | None]] = []
     if pts is not None:
-        layers.append((_points_trace(go, pts, fits, current, max_points), -1))
+        layers += [(t, -1) for t in _points_traces(go, pts, outliers, fits, current, max_points)]
+    n_point_traces = len(layers)
     for i, fit in enumerate(fits):
         zs = extract_zero_set(fit.polynomial, bounds=box, resolution=resolution)
         q = fit.entry.get("quality") or {}
@@ -281,9 +312,9 @@ def result_figure(result, points: ArrayLike | None = None, *, faces: ArrayLike |
             # trimming splits components: a recorded count no longer matches them, unless it is 0
             recorded = 0 if recorded == 0 else None
         flags = np.zeros(zs.n_components, dtype=bool)
-        if pts is not None:
-            flags = spurious_flags(zs, pts, faces=faces, ordered_contour=bool(ordered_contour), tau=q.get("tau"),
-                                   n_spurious=recorded)
+        if kept is not None:
+            flags = spurious_flags(zs, kept, faces=kept_faces, ordered_contour=bool(ordered_contour),
+                                   tau=q.get("tau"), n_spurious=recorded)
         layers += [(t, i) for t in _zero_set_traces(go, dim, zs, flags, fit.degree, i == current, max_faces)]
     if normals is not None and pts is not None:
         layers.append((_normals_trace(go, pts, as_normals(normals, pts)), None))
@@ -294,7 +325,7 @@ def result_figure(result, points: ArrayLike | None = None, *, faces: ArrayLike |
     switched = [t for t, who in enumerate(owner) if who is not None]
     steps = []
     for i, fit in enumerate(fits):
-        templates = [_point_template(fit.degree, i + 1) if t == 0 and pts is not None
+        templates = [_point_template(fit.degree, i + 1) if t < n_point_traces
                      else getattr(traces[t], "hovertemplate", None) for t in switched]
         visible = [owner[t] in (-1, i) for t in switched]
         steps.append(dict(label=str(fit.degree), method="update",
