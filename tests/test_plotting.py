@@ -364,7 +364,6 @@ def rows(points) -> set:
 
 def scatters_by_colour(ax) -> dict:
     """rgb → the rows drawn in that colour, over the axes' scatter collections (2D or 3D)."""
-    from matplotlib.colors import to_rgb
     from mpl_toolkits.mplot3d.art3d import Path3DCollection
 
     found: dict = {}
@@ -537,7 +536,7 @@ def test_mesh_outliers_leave_the_faces_that_touch_them(fitted_sphere):
 
     from ipfit.viz.plotting import OUTLIER_COLOR, POINT_COLOR_3D, plot_result
 
-    shape, result = fitted_sphere
+    _, result = fitted_sphere
     mesh = trimesh.creation.icosphere(subdivisions=2)
     vertices = np.array(mesh.vertices)
     outliers = np.array([0, 7, 30])
@@ -551,3 +550,25 @@ def test_mesh_outliers_leave_the_faces_that_touch_them(fitted_sphere):
     assert drawn[rgb(OUTLIER_COLOR)] == rows(vertices[outliers])
     radii = np.linalg.norm(np.array(sorted(drawn[rgb(POINT_COLOR_3D)])), axis=1)
     assert len(radii) > 300 and radii.max() < 1.0 + 1e-9  # samples of untouched faces: inside the unit sphere
+
+
+def test_plot_points_takes_outliers_as_a_mask_or_indices():
+    from ipfit.viz.plotting import OUTLIER_COLOR, POINT_COLOR, plot_points
+
+    pts = synthetic.circle(50).points
+    for outliers in ([7, 3], np.isin(np.arange(50), [3, 7])):
+        ax = plot_points(pts, outliers=outliers)
+        assert scatters_by_colour(ax) == {rgb(OUTLIER_COLOR): rows(pts[[3, 7]]),
+                                          rgb(POINT_COLOR): rows(np.delete(pts, [3, 7], axis=0))}
+        assert [t.get_text() for t in ax.get_legend().get_texts()] == ["outliers (2)"]
+        close(ax)
+    ax = plot_points(pts, outliers=[])  # none marked: as without
+    assert scatters_by_colour(ax) == {rgb(POINT_COLOR): rows(pts)} and ax.get_legend() is None
+    with pytest.raises(InvalidInputError, match=r"^outliers: expected 50 flags, one per point, or indices, got 49"):
+        plot_points(pts, ax, outliers=np.ones(49, dtype=bool))
+    with pytest.raises(InvalidInputError, match=r"^outliers: expected a mask of 50 flags or indices from 0 to 49, "
+                                                r"got .* from 3 to 50\. Use"):
+        plot_points(pts, ax, outliers=[3, 50])
+    with pytest.raises(InvalidInputError, match="outliers: expected a mask"):
+        plot_points(pts, ax, outliers=[0.5])
+    close(ax)

@@ -345,3 +345,59 @@ def test_far_term_weight_has_one_json_key_and_version_1_files_still_read(tmp_pat
         assert "far_weight" not in read["adaptive"]
         assert read["coefficients"] == written["coefficients"]
     assert list(read["adaptive"]) == list(written["adaptive"])  # the key keeps its place
+
+
+# -- the outliers section ---------------------------------------------------------------------
+
+def _with_outliers(fitted: dict, indices, n_points: int | None = 120, **extra) -> dict:
+    data = copy.deepcopy(fitted)
+    if n_points is None:
+        data.pop("input")
+    else:
+        data["input"]["n_points"] = n_points
+    data["outliers"] = {"mode": "auto", "count": len(set(indices)), "share": len(set(indices)) / (n_points or 120),
+                        "noise_scale": 0.01, "indices": list(indices), **extra}
+    return data
+
+
+def test_view_reads_the_outliers(fitted):
+    view = result_view(fitted)
+    assert view.outliers == {} and view.outlier_indices is None and view.outlier_mask(120) is None
+    view = result_view(json.dumps(_with_outliers(fitted, [17, 3.0, 99])))  # 3.0: a whole number written as a float
+    assert view.outliers["mode"] == "auto" and view.outliers["noise_scale"] == 0.01
+    assert view.outlier_indices.dtype == np.int64 and view.outlier_indices.tolist() == [3, 17, 99]
+    mask = view.outlier_mask(120)
+    assert mask.shape == (120,) and np.flatnonzero(mask).tolist() == [3, 17, 99]
+
+
+def test_outlier_mask_without_input_checks_indices_and_share(fitted, recwarn):
+    view = result_view(_with_outliers(fitted, [0, 5, 119], n_points=None))
+    assert np.flatnonzero(view.outlier_mask(120)).tolist() == [0, 5, 119]  # share 3/120: the rows match
+    for rows, why in [(121, "a share of 0.025 of the points it fitted"), (119, "indices run up to 119")]:
+        with pytest.warns(ipfit.IpfitWarning, match=f"result: outliers not marked: its .*{why}.*, but {rows} points"):
+            assert view.outlier_mask(rows) is None
+    no_share = {k: v for k, v in view.outliers.items() if k != "share"}
+    view = result_view({**_with_outliers(fitted, [0, 5, 119], n_points=None), "outliers": no_share})
+    assert view.outlier_mask(500) is not None  # nothing but the indices to go by: they fit
+    assert not [w for w in recwarn if issubclass(w.category, ipfit.IpfitWarning)]
+
+
+def test_outlier_mask_refuses_rows_that_are_not_the_fitted_ones(fitted, tmp_path):
+    data = _with_outliers(fitted, [1, 2])
+    path = tmp_path / "r.json"
+    write_result(path, data)
+    with pytest.warns(ipfit.IpfitWarning, match=rf"^{re.escape(str(path))}: outliers not marked: it fitted 120 "
+                                                 r"points, but 100 points were given"):
+        assert result_view(path).outlier_mask(100) is None
+    huge = _with_outliers(fitted, [1, 1e300])  # a whole number float64 holds: beyond any cloud, not an overflow
+    with pytest.warns(ipfit.IpfitWarning, match="indices run up to"):
+        assert result_view(huge).outlier_mask(120) is None
+
+
+def test_outlier_mask_is_none_without_outliers(fitted, recwarn):
+    for record in ({"mode": "none", "count": 0, "share": 0.0, "noise_scale": None, "indices": []},
+                   {"mode": "auto", "count": 0, "share": 0.0, "noise_scale": 0.02},  # no indices written
+                   {"mode": 0.1, "count": 12, "share": 0.1, "noise_scale": 0.02}):
+        view = result_view({**fitted, "outliers": record})
+        assert view.outlier_mask(7) is None  # whatever the rows: nothing to place
+    assert not [w for w in recwarn if issubclass(w.category, ipfit.IpfitWarning)]

@@ -17,7 +17,7 @@ from ipfit import ImplicitPolynomial, extract_zero_set, quality, write_points
 from ipfit.cli import main
 from ipfit.datasets import synthetic
 
-from test_plotting import adaptive_result
+from test_plotting import adaptive_result, planted
 
 pytest.importorskip("plotly", reason="the viewer needs plotly (pip install 'ipfit[viewer]')")
 
@@ -187,6 +187,61 @@ def test_figure_without_points_uses_recorded_bounds(torus_case):
     assert fig.layout.scene.xaxis.range[0] < shape.points[:, 0].min()
 
 
+@pytest.fixture(scope="module")
+def planted_ellipse():
+    """A real result (fit_adaptive's to_dict, 3L, degrees 2 and 4) and 20 planted outliers."""
+    shape = synthetic.ellipse(120)
+    result = ipfit.fit_adaptive(shape.points, shape.normals, method="3l", max_degree=4, rule="geometric").to_dict()
+    return planted(shape, result)
+
+
+def _xyz(trace) -> np.ndarray:
+    axes = [trace.x, trace.y] + ([trace.z] if trace.type == "scatter3d" else [])
+    return np.column_stack([np.asarray(a, dtype=np.float32) for a in axes])
+
+
+def test_figure_outliers_are_a_trace_of_their_own(planted_ellipse):
+    points, indices, data = planted_ellipse
+    fig = viewer.result_figure(data, points)
+    traces = {t.name: t for t in fig.data}
+    outliers, inliers = traces["outliers (20)"], traces["data points"]
+    assert outliers.marker.color == viewer.OUTLIER_COLOR != inliers.marker.color
+    assert outliers.showlegend is not False and outliers.visible in (None, True)  # listed, so a click hides it
+    kept = np.setdiff1d(np.arange(len(points)), indices)
+    np.testing.assert_array_equal(_xyz(outliers), points[indices].astype(np.float32))
+    np.testing.assert_array_equal(_xyz(inliers), points[kept].astype(np.float32))
+    # hovering shows the point's index in the data, and |f|/|grad f| at the degree shown, in either trace
+    np.testing.assert_array_equal(np.asarray(outliers.customdata)[:, 0], indices)
+    np.testing.assert_array_equal(np.asarray(inliers.customdata)[:, 0], kept)
+    names = [t.name for t in fig.data]
+    for step in fig.layout.sliders[0].steps:
+        update, _, switched = step.args
+        for name in ("data points", "outliers (20)"):
+            at = switched.index(names.index(name))
+            assert update["visible"][at] and f"at degree {step.label}:" in update["hovertemplate"][at]
+
+
+def test_figure_3d_outliers(torus_case):
+    shape, data = torus_case
+    points, indices, data = planted(shape, data, n_outliers=25, seed=3)
+    fig = viewer.result_figure(data, points, resolution=24, max_faces=800)
+    (outliers,) = [t for t in fig.data if t.name == "outliers (25)"]
+    assert outliers.type == "scatter3d" and outliers.marker.color == viewer.OUTLIER_COLOR
+    np.testing.assert_array_equal(_xyz(outliers), points[indices].astype(np.float32))
+    (inliers,) = [t for t in fig.data if t.name == "data points"]
+    assert len(inliers.x) == len(points) - 25
+
+
+def test_figure_with_other_rows_warns_and_draws_all_as_data(planted_ellipse):
+    points, _, data = planted_ellipse
+    with pytest.warns(ipfit.IpfitWarning, match="it fitted 140 points, but 100 points were given") as caught:
+        fig = viewer.result_figure(data, points[:100])
+    assert len(caught) == 1
+    assert [t.name for t in fig.data if t.type == "scatter" and t.mode == "markers"][:1] == ["data points"]
+    assert not any((t.name or "").startswith("outliers") for t in fig.data)
+    np.testing.assert_array_equal(_xyz(fig.data[0]), points[:100].astype(np.float32))
+
+
 # -- HTML and the command line --------------------------------------------------------------
 
 def test_page_is_self_contained_and_div_for_notebooks(ellipse_case, tmp_path):
@@ -218,6 +273,21 @@ def test_cli_view(torus_case, tmp_path, capsys):
     out = tmp_path / "v.html"
     assert main(["view", str(result), "--no-points", "--no-normals", "-o", str(out), "--max-faces", "800"]) == 0
     assert '"name":"data points"' not in out.read_text(encoding="utf-8")
+
+
+def test_cli_view_outliers_and_a_warning_for_other_data(planted_ellipse, tmp_path, capsys):
+    points, _, data = planted_ellipse
+    write_points(tmp_path / "cloud.csv", points)
+    result = tmp_path / "cloud.json"
+    result.write_text(json.dumps(dict(data, input={"source": str(tmp_path / "cloud.csv"), "n_points": len(points)})))
+    assert main(["view", str(result), "-o", str(tmp_path / "a.html")]) == 0  # the recorded data: the fitted points
+    assert '"name":"outliers (20)"' in (tmp_path / "a.html").read_text(encoding="utf-8")
+    assert capsys.readouterr().err == ""
+    write_points(tmp_path / "other.csv", points[:-1])
+    assert main(["view", str(result), "--points", str(tmp_path / "other.csv"), "-o", str(tmp_path / "b.html")]) == 0
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "outliers not marked: it fitted 140 points, but 139 points were given" in err
+    assert '"name":"outliers' not in (tmp_path / "b.html").read_text(encoding="utf-8")
 
 
 @pytest.mark.parametrize("argv, match", [
@@ -392,3 +462,25 @@ def test_a_result_displays_itself_in_a_notebook():
     assert html.lstrip().startswith("<div") and "<html" not in html[:200].lower()
     figure = result.show(shape.points)
     assert len(figure.data) > 0 and len(figure.layout.sliders) == 1
+
+
+def _amber_fraction(image: np.ndarray) -> float:
+    # OUTLIER_COLOR (#ffb000): nothing else on the page is a saturated yellow (the spurious red has little green)
+    r, g, b = image[..., 0], image[..., 1], image[..., 2]
+    return float(np.mean((r > 200) & (g > 130) & (g < 215) & (b < 90)))
+
+
+def test_outliers_toggle_in_the_legend_in_a_headless_browser(browser, planted_ellipse, tmp_path):
+    points, _, data = planted_ellipse
+    path = tmp_path / "view.html"
+    viewer.write_html(data, points, path)
+    browser.get(path.resolve().as_uri())
+    _wait_for(lambda: _plot(browser, "!!(gd && gd._fullLayout && gd.layout.sliders)"), "plotly to draw")
+    _wait_for(lambda: _amber_fraction(_plot_area(_screenshot(browser))) > 1e-4, "the outliers drawn in amber")
+    item = browser.execute_script("return Array.from(document.querySelectorAll('.legend .traces'))"
+                                  ".find(t => t.textContent === 'outliers (20)').querySelector('.legendtoggle');")
+    item.click()
+    assert _wait_for(lambda: _plot(browser, "gd.data.find(t => t.name === 'outliers (20)').visible"),
+                     "the legend click") == "legendonly"
+    _wait_for(lambda: _amber_fraction(_plot_area(_screenshot(browser))) == 0, "the outliers hidden")
+    assert [e for e in browser.get_log("browser") if e["level"] == "SEVERE"] == []

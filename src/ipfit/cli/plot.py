@@ -20,6 +20,10 @@ data near them) are drawn in red. Rendered without a display; the format follows
 Without --points, the data the result records ("input": its path, or a bundled dataset's name)
 is drawn; when it cannot be found, a warning says so and the figure has no points.
 
+When the fit treated points as outliers (the result's "outliers"), they are drawn in amber with a
+legend entry "outliers (N)", if the data drawn are the points fitted (as many rows as "input"
+records); otherwise a warning says so and every point is drawn as data.
+
 --trim [DIST] draws only the part of each zero set within DIST of the data, as `ipfit fit --trim`
 and `ipfit mesh --trim` export it (an open scan stays open); without DIST, 5 x the data's median
 point spacing, or 2% of its box diagonal if larger.
@@ -75,7 +79,7 @@ def run(args: argparse.Namespace) -> int:
     elif not args.no_points:
         points, faces = load_points(args.points, view, NAME, missing="drawing the zero sets without the points")
     with outputs.writing() as stage:
-        fig = plot_result(view.data, points=points, faces=faces, path=stage(args.output), title=args.title,
+        fig = plot_result(view, points=points, faces=faces, path=stage(args.output), title=args.title,
                           margin=args.margin, resolution=args.resolution, view=tuple(args.view), up=args.up,
                           dpi=args.dpi, trim=trim)
     print(f"{args.output}: {len(fig.axes)} panel(s){trimmed_note(trim)}")

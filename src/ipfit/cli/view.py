@@ -15,7 +15,10 @@ Write one self-contained HTML page (works offline: plotly's JavaScript is inline
 RESULT.json (written by `ipfit fit`): the data and the zero set of every degree tried, a slider
 to switch degrees, spurious components in red, the data's normals (click "normals" in the
 legend), the per-degree table, why the degree was selected, and smoothness against degree.
-Hovering a point shows its index and |f|/|grad f| at the degree shown.
+Hovering a point shows its index and |f|/|grad f| at the degree shown. The points the fit
+treated as outliers (the result's "outliers") are a trace of their own, "outliers (N)", in amber
+(click it in the legend to hide them), when the data are the points fitted; otherwise a warning
+says so and every point is drawn as data.
 
 Without --points, the data recorded in the result ("input") is used when it can be read.
 --trim [DIST] draws only the part of each zero set within DIST of the data, as `ipfit fit --trim`
@@ -82,7 +85,7 @@ def run(args: argparse.Namespace) -> int:
                                 "not be read. Pass the data with --points DATA.")
     trim = drawing_trim(args.trim, points)
     with outputs.writing() as stage:
-        write_html(data, points, stage(output), faces=faces, normals=normals, title=args.title, up=args.up,
+        write_html(view, points, stage(output), faces=faces, normals=normals, title=args.title, up=args.up,
                    margin=args.margin, max_faces=args.max_faces or MAX_FACES, trim=trim)
     size = output.stat().st_size / 1e6
     print(f"{output}: {size:.1f} MB" + ("" if points is not None else " (without the data points)")

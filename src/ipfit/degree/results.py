@@ -240,7 +240,12 @@ class ResultView:
 
 
 def result_view(result: Any, source: str | None = None) -> ResultView:
-    """Read a result (see :func:`load_result` for what it accepts) into a :class:`ResultView`."""
+    """Read a result (see :func:`load_result` for what it accepts) into a :class:`ResultView`.
+
+    A :class:`ResultView` is returned as it is: its messages keep naming its file.
+    """
+    if isinstance(result, ResultView):
+        return result
     source = source or _source_of(result)
     data = load_result(result, source)
     poly = ImplicitPolynomial.from_dict(data, source)

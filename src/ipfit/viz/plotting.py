@@ -392,8 +392,8 @@ def plot_surface(poly: ImplicitPolynomial | None, points: ArrayLike | None = Non
         surface = poly if poly is not None else zs.polynomial
         if surface is not None:
             # An outlier's gradient says nothing about the side it is on: every outlier is drawn.
-            keep = _facing_camera(pts, surface, view, up) | (False if marked is None else marked)
-            pts, marked = pts[keep], None if marked is None else marked[keep]
+            front = _facing_camera(pts, surface, view, up) | (False if marked is None else marked)
+            pts, marked = pts[front], None if marked is None else marked[front]
         if len(pts):
             plot_points(pts, ax, zorder=3, outliers=marked, outlier_color=outlier_color)
     _camera(ax, view, up)
@@ -521,8 +521,8 @@ def plot_result(result, points: ArrayLike | None = None, path: str | os.PathLike
 
     Parameters
     ----------
-    result : path to a result JSON, a dict, or an ImplicitPolynomial (see
-        :func:`ipfit.degree.results.load_result`).
+    result : path to a result JSON, a dict, an ImplicitPolynomial (see
+        :func:`ipfit.degree.results.load_result`) or a :class:`~ipfit.degree.results.ResultView`.
     points : the data (drawn with the zero sets; its box frames every panel), in the order
         it was fitted in.
     path : where to save the figure (atomically; format by extension, :data:`FIGURE_FORMATS`).
@@ -549,11 +549,19 @@ def plot_result(result, points: ArrayLike | None = None, path: str | os.PathLike
     face_array = None if faces is None or pts is None or dim != 3 else as_faces(faces, len(pts))
     if face_array is not None and len(face_array) == 0:
         face_array = None
-    outliers = None if pts is None else view_.outlier_mask(len(pts))  # warns once when the rows do not match
-    if outliers is not None and outliers.all():
-        outliers = None  # nothing left to call the data: draw it as data
-    # kept: the data the fit kept (every point, or the inliers), which spurious pieces are judged against
-    kept, kept_faces = (pts, face_array) if outliers is None else without_outliers(pts, face_array, outliers)
+    # kept: the data the fit kept (every point, or the inliers), which spurious pieces are judged
+    # against; shown: the points drawn (samples of a mesh's faces), the outliers last
+    kept: NDArray[np.float64] | None = None
+    kept_faces, shown, shown_outliers = face_array, None, None
+    if pts is not None:
+        outliers = view_.outlier_mask(len(pts))  # warns once when the rows do not match
+        if outliers is not None and outliers.all():
+            outliers = None  # nothing left to call the data: draw it as data
+        kept, kept_faces = (pts, face_array) if outliers is None else without_outliers(pts, face_array, outliers)
+        shown = display_points(kept, kept_faces)
+        if outliers is not None:
+            shown_outliers = np.repeat([False, True], [len(shown), int(outliers.sum())])
+            shown = np.vstack([shown, pts[outliers]])
     box = _panel_bounds(view_, pts, margin)
     resolution = resolution or _PLOT_RESOLUTION[dim]
     panels = _panels(view_)
@@ -564,12 +572,6 @@ def plot_result(result, points: ArrayLike | None = None, path: str | os.PathLike
     fig = Figure(figsize=size, layout="constrained")
     if dim == 3:
         import mpl_toolkits.mplot3d  # noqa: F401  registers the 3d projection
-    shown = shown_outliers = None
-    if kept is not None:
-        shown = display_points(kept, kept_faces)
-        if outliers is not None:
-            shown_outliers = np.repeat([False, True], [len(shown), int(outliers.sum())])
-            shown = np.vstack([shown, pts[outliers]])
     ordered = dim == 2 and kept is not None and looks_like_contour(kept)
     for index, (label, kind, payload) in enumerate(panels):
         letter = f"({chr(ord('a') + index)}) " if 1 < len(panels) and index < 26 else ""

@@ -12,7 +12,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..._utils.validation import as_faces, as_normals, as_points, check_choice, check_int, check_positive, error
-from ...degree.results import ResultView, load_result, result_view
+from ...degree.results import ResultView, result_view
 from ...exceptions import IpfitError
 from ...polynomial import ImplicitPolynomial
 from ...zeroset.extract import ZeroSet, data_bounds, default_bounds, extract_zero_set
@@ -55,10 +55,10 @@ def _plotly():
     return go
 
 
-def _as_dict(result) -> dict:
+def _as_view(result) -> ResultView:
     if hasattr(result, "to_dict") and not isinstance(result, (Mapping, ImplicitPolynomial)):
-        return result.to_dict()  # an AdaptiveResult
-    return load_result(result)
+        return result_view(result.to_dict())  # an AdaptiveResult
+    return result_view(result)  # a ResultView as it is: a warning names its file
 
 
 class _Fit(NamedTuple):
@@ -243,8 +243,8 @@ def result_figure(result, points: ArrayLike | None = None, *, faces: ArrayLike |
 
     Parameters
     ----------
-    result : result dict (``ipfit fit``'s JSON), path to one, an AdaptiveResult or an
-        ImplicitPolynomial.
+    result : result dict (``ipfit fit``'s JSON), path to one, a
+        :class:`~ipfit.degree.results.ResultView`, an AdaptiveResult or an ImplicitPolynomial.
     points : (N, dim) data: drawn, hoverable, framing the box and finding the spurious
         components. Without it the box comes from the result's ``bounds`` (or its
         normalisation) and spurious components are not marked.
@@ -267,8 +267,8 @@ def result_figure(result, points: ArrayLike | None = None, *, faces: ArrayLike |
         ``points``); the polynomial is unchanged.
     """
     go = _plotly()
-    data = _as_dict(result)
-    view = result_view(data)
+    view = _as_view(result)
+    data = dict(view.data)
     fits, selected = _fits(view, data)
     dim = fits[0].polynomial.dim
     up = check_choice(up, "up", ("x", "y", "z"))
