@@ -364,6 +364,7 @@ def test_view_reads_the_outliers(fitted):
     view = result_view(fitted)
     assert view.outliers == {} and view.outlier_indices is None and view.outlier_mask(120) is None
     view = result_view(json.dumps(_with_outliers(fitted, [17, 3.0, 99])))  # 3.0: a whole number written as a float
+    assert result_view(view) is view  # a view passes through, keeping its source
     assert view.outliers["mode"] == "auto" and view.outliers["noise_scale"] == 0.01
     assert view.outlier_indices.dtype == np.int64 and view.outlier_indices.tolist() == [3, 17, 99]
     mask = view.outlier_mask(120)
