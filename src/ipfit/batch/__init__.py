@@ -209,7 +209,7 @@ def write_summary(folder: Path, batch: BatchResult) -> list[Path]:
 def fit_many(inputs, *, client=None, workers: int | None = None, scheduler: str | None = None,
              output: str | os.PathLike | None = None, method=DEFAULT_METHOD, options: SearchOptions | None = None,
              min_degree: int = 2, max_degree: int | None = None, epsilon: float = DEFAULT_EPSILON,
-             delta: float = DEFAULT_DELTA, rule=DEFAULT_RULE, seed: int = 0,
+             delta: float = DEFAULT_DELTA, rule=DEFAULT_RULE, seed: int = 0, outliers: str | float = "auto",
              progress: Callable[[dict], None] | None = None, also_writes: Iterable[str] = ()) -> BatchResult:
     """Fit every shape of ``inputs`` with :func:`~ipfit.fit_adaptive` on a Dask cluster.
 
@@ -223,7 +223,8 @@ def fit_many(inputs, *, client=None, workers: int | None = None, scheduler: str 
     output : a folder for ``NAME.json`` per shape and ``summary.csv``; shapes whose valid
         result there has the same settings are skipped (resume). Files there that ipfit
         did not write are never replaced (see the module's notes).
-    method, options, min_degree, max_degree, epsilon, delta, rule : as :func:`~ipfit.fit_adaptive`.
+    method, options, min_degree, max_degree, epsilon, delta, rule, outliers : as
+        :func:`~ipfit.fit_adaptive`.
     seed : the batch seed; shape ``name`` uses :func:`shape_rng` ``(seed, name)``.
     progress : called after each shape with ``{"event": "shape", "name", "status", "done",
         "failed", "skipped", "running", "total", "elapsed", "eta"}`` (``eta`` in seconds or None).
@@ -251,12 +252,14 @@ def fit_many(inputs, *, client=None, workers: int | None = None, scheduler: str 
     IpfitError
         ``dask.distributed`` is not installed (``pip install 'ipfit[dask]'``).
     """
+    from ..robust import check_outliers
+
     require_distributed()
     if client is None and scheduler is None:
         workers = min(2, max_workers()) if workers is None else check_workers(workers)
     tasks = expand_inputs(inputs)
     settings = FitSettings(method, options, min_degree, max_degree, epsilon, delta, _rule_name(rule),
-                           check_int(seed, "seed", minimum=0))
+                           check_int(seed, "seed", minimum=0), check_outliers(outliers))
     _check_settings(settings)
     folder = None if output is None else Path(output)
     outputs = None

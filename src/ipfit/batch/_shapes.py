@@ -53,13 +53,14 @@ class FitSettings:
     delta: float = DEFAULT_DELTA
     rule: str = DEFAULT_RULE
     seed: int = 0
+    outliers: str | float = "auto"
 
     def to_dict(self) -> dict:
         method = self.method if isinstance(self.method, str) else \
             f"{getattr(self.method, '__module__', '')}.{getattr(self.method, '__qualname__', repr(self.method))}"
         return {"method": method, "options": None if self.options is None else self.options.to_dict(),
                 "min_degree": self.min_degree, "max_degree": self.max_degree, "epsilon": self.epsilon,
-                "delta": self.delta, "rule": self.rule, "seed": self.seed}
+                "delta": self.delta, "rule": self.rule, "seed": self.seed, "outliers": self.outliers}
 
     @property
     def hash(self) -> str:
@@ -73,7 +74,7 @@ class FitSettings:
 
         return fit_adaptive(points, normals, method=self.method, options=self.options, min_degree=self.min_degree,
                             max_degree=self.max_degree, epsilon=self.epsilon, delta=self.delta, rule=self.rule,
-                            faces=faces, rng=shape_rng(self.seed, name))
+                            faces=faces, outliers=self.outliers, rng=shape_rng(self.seed, name))
 
 
 @dataclass(frozen=True)

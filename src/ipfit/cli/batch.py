@@ -152,6 +152,7 @@ def run(args: argparse.Namespace) -> int:
 
     degree = _parse_degree(args.degree, 0)
     method, options, rule = search_settings(args)
+    outliers = "none" if args.paper else ("auto" if args.outliers is None else args.outliers)
     shown = BatchProgress(progress_mode(args.quiet))
     start = time.perf_counter()
     try:
@@ -159,6 +160,7 @@ def run(args: argparse.Namespace) -> int:
             batch = fit_many(args.inputs, workers=args.workers, scheduler=args.scheduler, output=args.output,
                              method=method, options=options, rule=rule, epsilon=args.epsilon, delta=args.delta,
                              min_degree=degree or 2, max_degree=degree or args.max_degree, seed=args.seed,
+                             outliers=outliers,
                              progress=shown, also_writes=HTML_FILES if args.html else ())
     finally:
         shown.close()

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 from pathlib import Path
 
@@ -28,7 +29,7 @@ from .mesh import add_trim_argument, trim_for_export
 _OPTION_NAMES = {"max_degree": "--max-degree", "min_degree": "--degree", "rng": "--seed", "epsilon": "--epsilon",
                  "delta": "--delta", "iterations": "--iterations", "population_size": "--population",
                  "far_term_weight": "--far-term-weight",
-                 "method": "--method", "rule": "--rule"}
+                 "method": "--method", "rule": "--rule", "outliers": "--outliers"}
 
 NAME = "fit"
 HELP = "fit an implicit polynomial to a point file or a bundled dataset"
@@ -113,6 +114,10 @@ def add_fit_options(parser: argparse.ArgumentParser) -> None:
                         "once the shape is captured and takes the lowest clean degree within 0.01 of the best "
                         "F-score; 'geometric' is Algorithm 1 restricted to clean degrees; 'paper' is Algorithm 1 "
                         "exactly")
+    parser.add_argument("--outliers", type=outlier_setting, default=None, metavar="auto|none|SHARE",
+                        help="which points are stray returns, left out of the fit: 'auto' (default) finds them "
+                        "from the data (none on clean data), 'none' fits every point, a share such as 0.1 marks "
+                        "that many of the most outlying points")
     parser.add_argument("--paper", action="store_true",
                         help=f"the paper's exact pipeline: --method {PAPER_METHOD} --far-term-weight "
                         f"{PAPER.far_term_weight:g} --rule {PAPER_RULE}, DE in the raw coefficients started from "
@@ -125,6 +130,19 @@ def add_fit_options(parser: argparse.ArgumentParser) -> None:
                         help="random seed for a reproducible run (default 0)")
 
 
+def outlier_setting(text: str) -> str | float:
+    """--outliers: 'auto', 'none' or a share in [0, 0.9)."""
+    if text in ("auto", "none"):
+        return text
+    try:
+        share = float(text)
+    except ValueError:
+        share = math.nan
+    if not 0.0 <= share < 0.9:
+        raise argparse.ArgumentTypeError(f"expected auto, none or a share from 0 to 0.9, got {text!r}")
+    return share
+
+
 def search_settings(args: argparse.Namespace):
     """(method, options, rule) from the command line: --paper is the library's preset exactly."""
     from ..exceptions import InvalidInputError
@@ -133,7 +151,8 @@ def search_settings(args: argparse.Namespace):
 
     if args.paper:
         clash = [flag for flag, value in (("--method", args.method), ("--rule", args.rule),
-                                          ("--far-term-weight", args.far_term_weight)) if value is not None]
+                                          ("--far-term-weight", args.far_term_weight),
+                                          ("--outliers", args.outliers)) if value is not None]
         if clash:
             raise InvalidInputError(f"--paper: it fixes {', '.join(clash)}; drop {'it' if len(clash) == 1 else 'them'} "
                                     "or drop --paper.")
@@ -202,12 +221,17 @@ def run(args: argparse.Namespace) -> int:
     if args.trim is not None and args.no_zero_set:
         raise InvalidInputError("--trim: it trims the exported zero set, which --no-zero-set skips. Drop one of them.")
     prefix, outputs = _plan_outputs(args, data.name, dim)
+    # the paper fits every point; otherwise stray returns are found first ("auto" on a mesh finds none)
+    outliers = "none" if args.paper else ("auto" if args.outliers is None else args.outliers)
     source = "file"
     if normals is None or args.normals == "estimate":
-        from ..normals import estimate_normals
-
-        normals = estimate_normals(points)
         source = "estimated"
+        if outliers == "none":
+            from ..normals import estimate_normals
+
+            normals = estimate_normals(points)
+        else:
+            normals = None  # estimated by the fit, on the points it keeps
     method, options, rule = search_settings(args)
     resolved = options.for_method(method, dim=dim) if options is not None else None
     shown = Progress(progress_mode(args.quiet), resolved and resolved.iterations,
@@ -218,8 +242,8 @@ def run(args: argparse.Namespace) -> int:
     try:
         with cli_names(_OPTION_NAMES):
             result = fit_adaptive(points, normals, method=method, options=options, min_degree=lo, max_degree=hi,
-                                  epsilon=args.epsilon, delta=args.delta, rule=rule, faces=data.faces, rng=args.seed,
-                                  progress=progress)
+                                  epsilon=args.epsilon, delta=args.delta, rule=rule, faces=data.faces,
+                                  outliers=outliers, rng=args.seed, progress=progress)
     finally:
         shown.close()
     payload = result.to_dict()
@@ -229,6 +253,10 @@ def run(args: argparse.Namespace) -> int:
     payload["bounds"] = np.column_stack([points.min(axis=0), points.max(axis=0)]).tolist()
     trimmed = _write_outputs(outputs, prefix, payload, result, points, normals, data, args)
     if not args.quiet:
+        found = result.outliers
+        if found is not None and found.count:
+            print(f"{found.count:,} points ({found.outlier_share:.1%}) treated as outliers and left out of the fit"
+                  + (f"; noise scale {found.noise_scale:.3g}" if found.noise_scale else ""))
         table = ", ".join(f"{d.degree}: {d.smoothness:.4f}" for d in result.degrees)
         for entry in result.degrees:
             if entry.reason.startswith("rejected"):
@@ -260,12 +288,16 @@ def _write_outputs(outputs: Outputs, prefix: Path, payload: dict, result, points
     from ..zeroset.extract import extract_zero_set
 
     summary = None
+    # the zero set's box and its trimming follow the points the fit kept, not the stray ones
+    kept, faces = points, data.faces
+    if result.outliers is not None and result.outliers.count:
+        kept, faces = points[result.outliers.inliers], None
     with outputs.writing() as stage:
         zero_set = None
         if not args.no_zero_set:
-            zero_set = extract_zero_set(result.polynomial, points=points)
+            zero_set = extract_zero_set(result.polynomial, points=kept)
             if args.trim is not None:
-                zero_set, summary = trim_for_export(zero_set, points, data.faces, args.trim)
+                zero_set, summary = trim_for_export(zero_set, kept, faces, args.trim)
             for suffix in [".ply"] if points.shape[1] == 3 else [".svg", ".csv"]:
                 save_zero_set(zero_set, stage(beside(prefix, suffix)))
         # with --trim the figure and the viewer show what the exported zero set holds
@@ -274,7 +306,7 @@ def _write_outputs(outputs: Outputs, prefix: Path, payload: dict, result, points
             from ..viz.plotting import plot_result
 
             plot_result(payload, points=points, path=stage(beside(prefix, ".png")), trim=trim,
-                        faces=None if trim is None else data.faces)
+                        faces=None if trim is None else faces)
         if args.html:
             from ..viz.viewer import write_html
 

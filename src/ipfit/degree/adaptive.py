@@ -48,6 +48,7 @@ from ..fitting.options import (
 from ..fitting.refine import refine
 from ..normals import estimate_normals
 from ..polynomial import ImplicitPolynomial
+from ..robust import OutlierScore, check_outliers, score_outliers
 from ..zeroset.quality import Quality, looks_like_contour, quality
 from .repair import repair
 from .rules import RULES, DegreeRule, get_rule, select_degree, select_degree_geometric
@@ -137,6 +138,9 @@ class AdaptiveResult(Result):
     rule : the degree rule's name.
     epsilon, delta, method, seconds
     options : the search settings used by a refinement method (None for a linear fit).
+    outliers : the :class:`~ipfit.robust.OutlierScore` of the input points (per-point weights,
+        the inlier mask over every point given, the noise scale) when ``outliers`` was not
+        'none'; the fit is of the inliers.
     """
 
     polynomial: ImplicitPolynomial
@@ -149,6 +153,7 @@ class AdaptiveResult(Result):
     rule: str
     seconds: float
     options: SearchOptions | None = None
+    outliers: OutlierScore | None = None
 
     @property
     def distance(self) -> float:
@@ -196,6 +201,8 @@ class AdaptiveResult(Result):
                            "seconds": self.seconds, "success": self.success, "message": self.message}
         if self.options is not None:
             out["adaptive"]["options"] = self.options.to_dict()
+        if self.outliers is not None:
+            out["outliers"] = self.outliers.to_dict()
         chosen = self.at_degree(self.selected_degree)
         if chosen.quality is not None:
             out["quality"] = chosen.quality.to_dict()
@@ -258,7 +265,8 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
                  max_degree: int | None = None, min_degree: int = 2,
                  epsilon: float = DEFAULT_EPSILON, delta: float = DEFAULT_DELTA,
                  rule: str | DegreeRule = DEFAULT_RULE,
-                 faces: ArrayLike | None = None, ordered_contour: bool | None = None, rng=None,
+                 faces: ArrayLike | None = None, ordered_contour: bool | None = None,
+                 outliers: str | float = "auto", rng=None,
                  progress: Callable[[dict], None] | None = None) -> AdaptiveResult:
     """Find the degree the data needs (Algorithm 1) and fit at it.
 
@@ -296,6 +304,14 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
         with a cloud;
         a 2D contour in order, detected by :func:`ipfit.zeroset.quality.looks_like_contour` when
         None), used by the 'capture' and 'geometric' rules.
+    outliers : 'auto' (default), 'none' or a share in [0, 0.9): which points are stray returns,
+        left out of the fit. 'auto' finds them from the data alone
+        (:func:`ipfit.robust.score_outliers`: points far sparser than the shape's samples, or off
+        their neighbourhood's line or plane beyond the noise); on clean data it finds none and
+        the fit is exactly the fit of every point. A share marks that many of the most outlying
+        points. Normals are estimated on the inliers only. A mesh's vertices are its surface:
+        'auto' treats none as outliers there, and a share keeps the faces whose vertices are
+        all inliers. The result records the decision (:attr:`AdaptiveResult.outliers`).
     rng : seed or Generator (SPEC 7), passed to the metaheuristics.
     progress : called with a dict per event ('degree_start', 'iteration' with its 'stage',
         'degree_done').
@@ -307,7 +323,7 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
     Notes
     -----
     The paper's exact pipeline is ``fit_adaptive(points, normals, method=PAPER_METHOD,
-    options=PAPER, rule=PAPER_RULE)`` (what ``ipfit fit --paper`` runs). Ctrl-C
+    options=PAPER, rule=PAPER_RULE, outliers="none")`` (what ``ipfit fit --paper`` runs). Ctrl-C
     (KeyboardInterrupt) during a degree ends the loop: the degrees already finished are kept
     and the rule is applied to them (``reason='interrupted'``). With none finished, the
     interrupt propagates.
@@ -332,16 +348,25 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
     dim = pts.shape[1]
     method, options, rule, epsilon, delta, min_degree = check_settings(method, options, rule, epsilon, delta,
                                                                        min_degree, max_degree)
+    outliers = check_outliers(outliers)
     generator = check_rng(rng)
     progress = _check_progress(progress)
     if ordered_contour is not None and not isinstance(ordered_contour, (bool, np.bool_)):
         raise error("ordered_contour", "True, False or None", repr(ordered_contour))
-    top = _top_degree(len(pts), dim, min_degree, max_degree, rule)
     if given is not None:
-        faces, unit = given.faces, (estimate_normals(pts) if given.normals is None else given.unit_normals)
+        faces, known = given.faces, given.unit_normals
     else:
         faces = None if faces is None else as_faces(faces, len(pts), dim)
-        unit = estimate_normals(pts) if normals is None else as_normals(normals, pts)
+        known = None if normals is None else as_normals(normals, pts)
+    # A mesh's vertices are its surface by construction: 'auto' finds no stray returns there
+    # (uneven triangles would read as density outliers); a forced share still applies.
+    scored = None if outliers == "none" or (outliers == "auto" and faces is not None) else \
+        score_outliers(pts, outliers=outliers)
+    if scored is not None and not scored.inliers.all():
+        keep = scored.inliers
+        pts, known, faces = pts[keep], None if known is None else known[keep], _kept_faces(faces, keep)
+    top = _top_degree(len(pts), dim, min_degree, max_degree, rule)
+    unit = estimate_normals(pts) if known is None else known
     # One cloud for the whole fit: it keeps what every degree and repair round reuses (far-field
     # samples, start fits' R factors, spacing, the data's side of the quality measurements). Its
     # normals are ``unit`` normalised once more, as refine and the linear fits have always done
@@ -392,7 +417,16 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
         message=message, polynomial=chosen.polynomial,
         selected_degree=chosen.degree, degrees=tuple(results), reason=reason, epsilon=epsilon, delta=delta,
         method=name, rule=rule.name, seconds=time.perf_counter() - start,
-        options=options if method in REFINE_METHODS else None)
+        options=options if method in REFINE_METHODS else None, outliers=scored)
+
+
+def _kept_faces(faces: NDArray[np.int64] | None, keep: NDArray[np.bool_]) -> NDArray[np.int64] | None:
+    """The triangles whose three vertices are all kept, indexing the kept points."""
+    if faces is None:
+        return None
+    new_index = np.cumsum(keep) - 1
+    kept = new_index[faces[keep[faces].all(axis=1)]]
+    return kept if len(kept) else None
 
 
 def _select(results, rule: DegreeRule, epsilon: float, reason: str, fixed: bool) -> tuple[int, str, str]:
@@ -462,6 +496,6 @@ def _fit_degree(fitter: _Fitter, cloud: Cloud, unit, degree, delta, measured: bo
     m = compute_measures(poly, cloud.points, unit, delta=delta)
     poly = poly.with_coefficients(poly.coefficients, measures=m.to_dict())
     q = quality(poly, cloud, ordered_contour=ordered_contour) if measured else None
-    return DegreeResult(x=poly.coefficients, fun=float(m.distance if fun is None else fun), nit=nit, nfev=nfev, success=success,
-                        message=message, degree=degree, polynomial=poly, measures=m,
+    return DegreeResult(x=poly.coefficients, fun=float(m.distance if fun is None else fun), nit=nit, nfev=nfev,
+                        success=success, message=message, degree=degree, polynomial=poly, measures=m,
                         seconds=time.perf_counter() - t0, quality=q, solutions=solutions)
