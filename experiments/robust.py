@@ -229,19 +229,14 @@ def robust(points, dim: int, seed: int = 0):
 
 
 def treated_as_outliers(pipeline: str, points, result):
-    """(mask of the points the pipeline set aside or None, noise scale or None). The robust fit's
-    fields are looked for by the names issue 30 gives them (a mask or weights of inliers)."""
+    """(mask of the points the pipeline set aside or None, noise scale or None): the robust fit
+    records them in ``result.outliers`` (an :class:`ipfit.OutlierScore`)."""
     if pipeline == "sor":
         return ~statistical_outlier_removal(points), None
-    if pipeline != "robust":
+    found = getattr(result, "outliers", None)
+    if pipeline != "robust" or found is None:
         return None, None
-    noise = getattr(result, "noise_scale", None)
-    for name, outlier_when in (("inlier_mask", lambda v: ~v.astype(bool)), ("outlier_mask", lambda v: v.astype(bool)),
-                               ("inlier_weights", lambda v: v < 0.5), ("weights", lambda v: v < 0.5)):
-        value = getattr(result, name, None)
-        if value is not None and np.shape(value) == (len(points),):
-            return outlier_when(np.asarray(value)), noise
-    return None, noise
+    return ~np.asarray(found.inliers), float(found.noise_scale)
 
 
 FUNCTIONS = {"today": today, "sor": sor, "robust": robust}
