@@ -201,7 +201,10 @@ def _gaussian_scale(residuals: NDArray, counts: NDArray) -> float:
         normal = share * 2.0 * norm.pdf(r / sigma) / sigma
         member = normal / (normal + (1.0 - share) / top)
         share = float(member.mean())
-        sigma = float(np.sqrt((member * r * r).sum() / member.sum()))
+        refined = float(np.sqrt((member * r * r).sum() / member.sum())) if member.sum() > 0 else 0.0
+        if not refined > 0.0:  # the samples lie exactly on their quadrics (a polygon): keep the median's
+            break
+        sigma = refined
     return sigma
 
 
