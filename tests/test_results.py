@@ -361,8 +361,11 @@ def _with_outliers(fitted: dict, indices, n_points: int | None = 120, **extra) -
 
 
 def test_view_reads_the_outliers(fitted):
-    view = result_view(fitted)
-    assert view.outliers == {} and view.outlier_indices is None and view.outlier_mask(120) is None
+    view = result_view(fitted)  # a clean cloud: nothing left out, nothing to mark
+    assert view.outliers.get("count", 0) == 0 and view.outlier_mask(120) is None
+    assert view.outlier_indices is None or view.outlier_indices.size == 0
+    bare = result_view({k: v for k, v in fitted.items() if k != "outliers"})  # outliers="none" writes no section
+    assert bare.outliers == {} and bare.outlier_indices is None and bare.outlier_mask(120) is None
     view = result_view(json.dumps(_with_outliers(fitted, [17, 3.0, 99])))  # 3.0: a whole number written as a float
     assert result_view(view) is view  # a view passes through, keeping its source
     assert view.outliers["mode"] == "auto" and view.outliers["noise_scale"] == 0.01
