@@ -11,23 +11,12 @@ import json
 
 import numpy as np
 import pytest
-from scipy.spatial import cKDTree
+from planted import with_outliers
 
 import ipfit
 from ipfit.cli import main
 from ipfit.datasets import synthetic
 from ipfit.zeroset.extract import extract_zero_set
-
-
-def _planted(points: np.ndarray, share: float, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-    """``points`` plus ``share`` × N uniform outliers in the box grown by 20% per side, shuffled;
-    and the mask of the planted outliers."""
-    lo, hi = points.min(axis=0), points.max(axis=0)
-    extra = rng.uniform(lo - 0.2 * (hi - lo), hi + 0.2 * (hi - lo), size=(int(share * len(points)), points.shape[1]))
-    cloud = np.vstack([points, extra])
-    planted = np.r_[np.zeros(len(points), bool), np.ones(len(extra), bool)]
-    order = rng.permutation(len(cloud))
-    return cloud[order], planted[order]
 
 
 def _zero_set_error(poly, true_distance, truth: np.ndarray, size: float) -> float:
@@ -56,7 +45,7 @@ def test_an_ellipse_with_30_percent_outliers_keeps_its_zero_set(seed, offset):
     seed += offset
     rng = np.random.default_rng(seed)
     shape = synthetic.ellipse(300, a=2.0, b=1.0, rng=rng, random=True)
-    cloud, planted = _planted(shape.points, 0.3, rng)
+    cloud, planted = with_outliers(shape.points, 0.3, rng)
     result = ipfit.fit_adaptive(cloud, rng=seed)  # no normals: estimated on the inliers
     truth = synthetic.ellipse(4000, a=2.0, b=1.0).points
     assert _zero_set_error(result.polynomial, _ellipse_distance, truth, size=4.0) < 0.01
@@ -68,7 +57,7 @@ def test_a_sphere_with_30_percent_outliers_keeps_its_zero_set(seed, offset):
     seed += offset
     rng = np.random.default_rng(seed)
     shape = synthetic.sphere(800, radius=1.0, rng=rng)
-    cloud, planted = _planted(shape.points, 0.3, rng)
+    cloud, planted = with_outliers(shape.points, 0.3, rng)
     result = ipfit.fit_adaptive(cloud, max_degree=4, rng=seed)
     truth = synthetic.sphere(6000, radius=1.0, rng=np.random.default_rng(99)).points
     assert _zero_set_error(result.polynomial, _sphere_distance, truth, size=2.0) < 0.01
@@ -101,7 +90,7 @@ def _torus_distance(points: np.ndarray, major: float = 1.0, minor: float = 0.4) 
 def test_a_quartic_curve_with_30_percent_outliers_keeps_its_zero_set(seed, offset):
     seed += offset
     rng = np.random.default_rng(seed)
-    cloud, _ = _planted(_cassini(400, rng), 0.3, rng)
+    cloud, _ = with_outliers(_cassini(400, rng), 0.3, rng)
     truth = _cassini(4000)
     size = float(np.ptp(truth[:, 0]))
     result = ipfit.fit_adaptive(cloud, rng=seed)
@@ -115,7 +104,7 @@ def test_a_quartic_curve_with_30_percent_outliers_keeps_its_zero_set(seed, offse
 def test_a_torus_with_30_percent_outliers_keeps_its_zero_set(seed, offset):
     seed += offset
     rng = np.random.default_rng(seed)
-    cloud, _ = _planted(synthetic.torus(1500, rng=rng).points, 0.3, rng)
+    cloud, _ = with_outliers(synthetic.torus(1500, rng=rng).points, 0.3, rng)
     truth = synthetic.torus(8000, rng=np.random.default_rng(99)).points
     result = ipfit.fit_adaptive(cloud, max_degree=4, rng=seed)
     assert _zero_set_error(result.polynomial, _torus_distance, truth, size=2.8) < 0.01
@@ -128,7 +117,7 @@ def test_the_json_names_the_planted_outliers(seed, offset):
     seed += offset
     rng = np.random.default_rng(seed)
     shape = synthetic.ellipse(400, a=2.0, b=1.0, rng=rng, random=True)
-    cloud, planted = _planted(shape.points, 0.25, rng)
+    cloud, planted = with_outliers(shape.points, 0.25, rng)
     result = ipfit.fit_adaptive(cloud, method="3l", max_degree=2)
     section = json.loads(json.dumps(result.to_dict()))["outliers"]
     flagged = np.zeros(len(cloud), bool)
@@ -153,7 +142,7 @@ def test_clean_data_is_fitted_exactly_as_without_outlier_handling():
 
 def test_a_forced_share_marks_that_many_points():
     rng = np.random.default_rng(3)
-    cloud, _ = _planted(synthetic.ellipse(200, rng=rng, random=True).points, 0.1, rng)
+    cloud, _ = with_outliers(synthetic.ellipse(200, rng=rng, random=True).points, 0.1, rng)
     result = ipfit.fit_adaptive(cloud, method="3l", max_degree=2, outliers=0.1)
     assert result.outliers.count == round(0.1 * len(cloud))
     assert result.outliers.to_dict()["mode"] == 0.1
@@ -167,7 +156,7 @@ def test_a_bad_outlier_setting_is_one_line(bad):
 
 def test_the_command_line_says_what_it_left_out(tmp_path, capsys):
     rng = np.random.default_rng(0)
-    cloud, planted = _planted(synthetic.ellipse(300, rng=rng, random=True).points, 0.25, rng)
+    cloud, planted = with_outliers(synthetic.ellipse(300, rng=rng, random=True).points, 0.25, rng)
     data = tmp_path / "cloud.xyz"
     np.savetxt(data, cloud)
     prefix = tmp_path / "out" / "fit"

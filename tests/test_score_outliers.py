@@ -8,26 +8,18 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from planted import with_outliers
 
 import ipfit
 from ipfit.datasets import synthetic
 from ipfit.robust import score_outliers
 
 
-def _planted(points, share, rng):
-    lo, hi = points.min(axis=0), points.max(axis=0)
-    extra = rng.uniform(lo - 0.2 * (hi - lo), hi + 0.2 * (hi - lo), size=(int(share * len(points)), points.shape[1]))
-    cloud = np.vstack([points, extra])
-    planted = np.r_[np.zeros(len(points), bool), np.ones(len(extra), bool)]
-    order = rng.permutation(len(cloud))
-    return cloud[order], planted[order]
-
-
 @pytest.mark.parametrize("share", [0.1, 0.25, 0.4])
 @pytest.mark.parametrize("offset", [0, 1, 2])
 def test_planted_outliers_around_a_contour_are_found(seed, offset, share):
     rng = np.random.default_rng(seed + offset)
-    cloud, planted = _planted(synthetic.ellipse(400, a=2.0, b=1.0, rng=rng, random=True).points, share, rng)
+    cloud, planted = with_outliers(synthetic.ellipse(400, a=2.0, b=1.0, rng=rng, random=True).points, share, rng)
     found = ~score_outliers(cloud).inliers
     assert found[planted].mean() >= 0.95
     assert found[~planted].mean() <= 0.02
@@ -39,7 +31,7 @@ def test_planted_outliers_around_a_surface_are_found(seed, offset, share):
     # A sparse sphere (1,000 samples): strays within a sample spacing or two of it are on it in
     # all but name, and a few strays clump into patches as dense as the surface (docs/robust.md).
     rng = np.random.default_rng(seed + offset)
-    cloud, planted = _planted(synthetic.sphere(1000, rng=rng).points, share, rng)
+    cloud, planted = with_outliers(synthetic.sphere(1000, rng=rng).points, share, rng)
     found = ~score_outliers(cloud).inliers
     far = planted & (np.abs(np.linalg.norm(cloud, axis=1) - 1.0) > 0.05)
     assert found[far].mean() >= 0.9
@@ -67,7 +59,7 @@ def test_the_noise_scale_is_the_noise(seed, sigma):
 
 def test_the_score_does_not_depend_on_position_scale_rotation_or_order(seed):
     rng = np.random.default_rng(seed)
-    cloud, _ = _planted(synthetic.ellipse(300, a=2.0, b=1.0, rng=rng, random=True).points, 0.25, rng)
+    cloud, _ = with_outliers(synthetic.ellipse(300, a=2.0, b=1.0, rng=rng, random=True).points, 0.25, rng)
     base = score_outliers(cloud)
     angle = 0.7
     rotation = np.array([[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]])
@@ -79,7 +71,7 @@ def test_the_score_does_not_depend_on_position_scale_rotation_or_order(seed):
 
 def test_none_and_a_forced_share_do_what_they_say(seed):
     rng = np.random.default_rng(seed)
-    cloud, planted = _planted(synthetic.ellipse(300, rng=rng, random=True).points, 0.1, rng)
+    cloud, planted = with_outliers(synthetic.ellipse(300, rng=rng, random=True).points, 0.1, rng)
     none = score_outliers(cloud, outliers="none")
     assert none.inliers.all() and np.all(none.weights == 1.0) and none.mode == "none"
     for share in (0.0, 0.05, 0.2):
