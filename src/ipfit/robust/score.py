@@ -274,7 +274,7 @@ def _weights(score: NDArray, standard: NDArray, mode: str | float) -> NDArray[np
             return np.ones(len(score))
         return 1.0 / (1.0 + score ** 4)
     n = len(score)
-    m = int(round(float(mode) * n))
+    m = round(float(mode) * n)
     # highest score first, ties by coordinates: the same points whatever the input order
     order = np.lexsort((*standard.T[::-1], -score))
     if m == 0:
