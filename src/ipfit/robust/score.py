@@ -238,7 +238,10 @@ def score_outliers(points: ArrayLike, *, outliers="auto", k: int | None = None,
 
     >>> from ipfit.datasets.synthetic import circle
     >>> pts = np.vstack([circle(200).points, [[0.0, 0.0], [1.9, 1.9]]])
-    >>> score_outliers(pts).inliers[-2:].tolist()
+    >>> found = score_outliers(pts)  # two strays: scored past the threshold, too few to act on
+    >>> (found.score[-2:] > 1).tolist(), found.count
+    ([True, True], 0)
+    >>> score_outliers(pts, outliers=0.01).inliers[-2:].tolist()  # 1% of 202 points: those two
     [False, False]
     """
     pts = as_points(points, min_points=1)
