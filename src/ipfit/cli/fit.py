@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 from pathlib import Path
 
@@ -131,16 +130,14 @@ def add_fit_options(parser: argparse.ArgumentParser) -> None:
 
 
 def outlier_setting(text: str) -> str | float:
-    """--outliers: 'auto', 'none' or a share in [0, 0.9)."""
-    if text in ("auto", "none"):
-        return text
+    """--outliers: 'auto', 'none' or a share, checked by the library's one rule."""
+    from ..exceptions import InvalidInputError
+    from ..robust import check_outliers
+
     try:
-        share = float(text)
-    except ValueError:
-        share = math.nan
-    if not 0.0 <= share < 0.9:
-        raise argparse.ArgumentTypeError(f"expected auto, none or a share from 0 to 0.9, got {text!r}")
-    return share
+        return check_outliers(text if text in ("auto", "none") else float(text))
+    except (ValueError, InvalidInputError):
+        raise argparse.ArgumentTypeError(f"expected auto, none or a share from 0 to 0.9, got {text!r}") from None
 
 
 def search_settings(args: argparse.Namespace):
