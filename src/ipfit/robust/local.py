@@ -47,6 +47,8 @@ class LocalFit(NamedTuple):
     their RMS spread about it: about 0-1 among them, large when the query lies beyond them."""
     neighbours: NDArray[np.intp]
     """(n, k) indices into the reference points of each query's k points."""
+    extent: NDArray[np.float64]
+    """The RMS spread of the k points along the tangent, about their centroid."""
 
 
 def n_terms(dim: int) -> int:
@@ -107,13 +109,13 @@ def fit_local(ref: NDArray, query: NDArray, own: NDArray[np.intp], k: int, reach
     own : (n,) index of each query point in ``ref``, or -1: left out of its own fit
     k : points per fit
     reach : radius of the frame's neighbourhood, or None for the widest (``WIDE * k`` points).
-        The k nearest are always in it, so a radius below their distance keeps only them: on
-        clean data that keeps the two sides of a thin part apart.
+        The k nearest are always in it, so a radius below their distance (0) keeps only them:
+        on clean data that keeps the two sides of a thin part apart.
     workers : threads for the neighbour search
     """
     n = len(query)
     dist, wide = _frames(cKDTree(ref), query, own, k, reach, workers)
-    residual, offset = np.empty(n), np.empty(n)
+    residual, offset, extent = np.empty(n), np.empty(n), np.empty(n)
     chosen = np.empty((n, k), dtype=np.intp)
     for rows in blocks(n, 4 * wide.shape[1]):
         inside = np.isfinite(dist[rows])
@@ -136,9 +138,10 @@ def fit_local(ref: NDArray, query: NDArray, own: NDArray[np.intp], k: int, reach
         residual[rows] = np.abs(value) / np.sqrt(1.0 + np.minimum(leverage, _LEVERAGE_CAP))
         mean = u.mean(axis=1)
         rms = np.sqrt(np.einsum("mkt,mkt->m", u - mean[:, None], u - mean[:, None]) / k)
+        extent[rows] = rms
         with np.errstate(divide="ignore", invalid="ignore"):
             offset[rows] = np.where(rms > 0, np.sqrt(np.einsum("mt,mt->m", mean, mean)) / rms, 0.0)
-    return LocalFit(residual, offset, chosen)
+    return LocalFit(residual, offset, chosen, extent)
 
 
 def _solve(design: NDArray, h: NDArray, w: NDArray) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -165,3 +168,4 @@ def _irls(design: NDArray, h: NDArray) -> tuple[NDArray[np.float64], NDArray[np.
         w = np.where(np.abs(t) < 1.0, (1.0 - t * t) ** 2, 0.0)
     beta, leverage = _solve(design, h, w)
     return beta[:, 0], leverage
+
