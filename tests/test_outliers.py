@@ -282,6 +282,6 @@ def test_every_point_an_inlier_is_the_plain_estimate(rng):
     (np.zeros(500, bool), "at least 3 inliers"),
 ])
 def test_bad_inlier_masks_give_one_line_errors(inliers, expected):
-    with pytest.raises(InvalidInputError, match="^inliers: expected") as info:
+    with pytest.raises(InvalidInputError, match=r"^inliers: expected") as info:
         estimate_normals(synthetic.sphere(500).points, inliers=inliers)
     assert expected in str(info.value)
