@@ -173,9 +173,12 @@ def _rounds(points: NDArray, counts: NDArray, k: int, workers: int):
         # well inside the threshold and not much sparser than the samples (the far side of a
         # hole in a random sampling): strays let back in pull the reference off noisy shapes.
         kept = (ref & (score < 1.0)) | (sparse & (score < _READMIT))
-        if kept.sum() > k:
-            ref = kept
-        reach = _FRAME_REACH * sigma
+        if kept.sum() <= k:
+            kept = ref
+        # the same reference and frames of the k nearest again: the same fits (clean data)
+        if np.array_equal(kept, ref) and max(reach, _FRAME_REACH * sigma) < fit.widest:
+            break
+        ref, reach = kept, _FRAME_REACH * sigma
     return score, sigma
 
 
