@@ -9,7 +9,8 @@ sample. Three steps, each measured on the development data (``experiments/outlie
    shortest half of the values, which holds samples only even among 40 % strays), or within
    one width of that half where the sampling is irregular.
 2. **Local surfaces, a few rounds.** Each point's offset from a quadric fitted to the reference
-   points around it (the seed at first; the point itself left out, see :mod:`.local`) is
+   points around it (the seed at first; the point itself left out; in a frame of the k nearest
+   at first, then of the points within 4 noise scales, see :mod:`.local`) is
    compared with the noise scale, the Gaussian σ of the reference points' offsets (the
    half-normal part of a half-normal + uniform mixture, so that strays left in the reference
    do not inflate it), or, where the shape is rougher than the noise (corners, creases, a
