@@ -129,7 +129,7 @@ def _refit_along_curve(points: NDArray, idx: NDArray[np.intp], normals: NDArray,
 
 
 def estimate_normals(points: ArrayLike, k: int | None = None, *, orient: bool = True,
-                     workers: int = -1) -> NDArray[np.float64]:
+                     workers: int = -1, inliers: ArrayLike | None = None) -> NDArray[np.float64]:
     """Unit normals of a 2D or 3D point cloud by k-nearest-neighbour PCA.
 
     Two refinements of the plain fit, both where the k nearest neighbours are the wrong
@@ -158,6 +158,11 @@ def estimate_normals(points: ArrayLike, k: int | None = None, *, orient: bool = 
         If False the signs are arbitrary.
     workers : int
         Threads for the neighbour search: -1 for all cores, or a positive number.
+    inliers : (N,) bool array, optional
+        Which points are samples of the shape (e.g. ``ipfit.robust.score_outliers(points).inliers``).
+        The normals are estimated and oriented on those alone, so that a stray point can neither
+        tilt nor flip a neighbourhood; every other point takes the normal of its nearest inlier.
+        At least 3 inliers. None (the default): every point is one.
 
     Returns
     -------
@@ -175,6 +180,10 @@ def estimate_normals(points: ArrayLike, k: int | None = None, *, orient: bool = 
     True
     """
     pts = as_points(points, min_points=3)
+    if inliers is not None:
+        mask = _check_inliers(inliers, len(pts))
+        if not mask.all():
+            return _normals_of_inliers(pts, mask, k, orient, workers)
     k = default_k(k, pts.shape[1], len(pts))
     orient = check_flag(orient, "orient")
     workers = check_workers(workers)
@@ -193,6 +202,27 @@ def estimate_normals(points: ArrayLike, k: int | None = None, *, orient: bool = 
     else:
         links = _refit_sampled_curves(pts, tree, idx, normals, workers)
     return orient_graph(pts, normals, idx, flatness, links, tree=tree) if orient else normals
+
+
+def _check_inliers(inliers: ArrayLike, n: int) -> NDArray[np.bool_]:
+    mask = np.asarray(inliers)
+    if mask.dtype != np.bool_ or mask.shape != (n,):
+        got = f"an array of shape {mask.shape} and dtype {mask.dtype}"
+        raise error("inliers", f"a boolean mask of shape ({n},), one entry per point", got,
+                    "Pass e.g. ipfit.robust.score_outliers(points).inliers.")
+    if mask.sum() < 3:
+        raise error("inliers", "at least 3 inliers", str(int(mask.sum())), "Mark more points as inliers.")
+    return mask
+
+
+def _normals_of_inliers(points: NDArray, mask: NDArray[np.bool_], k, orient, workers) -> NDArray[np.float64]:
+    """Normals estimated on the inliers alone; each other point takes its nearest inlier's."""
+    normals = np.empty(points.shape)
+    normals[mask] = estimate_normals(points[mask], k, orient=orient, workers=workers)
+    std = standardise(points)  # a far stray's squared distance must not overflow
+    _, nearest = cKDTree(std[mask]).query(std[~mask], workers=check_workers(workers))
+    normals[~mask] = normals[mask][nearest]
+    return normals
 
 
 def contour_normals(points: ArrayLike, *, closed: bool = True, span: int = 1) -> NDArray[np.float64]:

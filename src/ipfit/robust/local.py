@@ -47,6 +47,10 @@ class LocalFit(NamedTuple):
     their RMS spread about it: about 0-1 among them, large when the query lies beyond them."""
     neighbours: NDArray[np.intp]
     """(n, k) indices into the reference points of each query's k points."""
+    extent: NDArray[np.float64]
+    """The RMS spread of the k points along the tangent, about their centroid."""
+    widest: float
+    """The smallest reach that widens a frame beyond the k nearest (the least k-th distance)."""
 
 
 def n_terms(dim: int) -> int:
@@ -76,24 +80,26 @@ def _neighbourhoods(tree: cKDTree, query: NDArray, own: NDArray[np.intp], width:
 
 
 def _frames(tree: cKDTree, query: NDArray, own: NDArray[np.intp], k: int, reach: float | None,
-            workers: int) -> tuple[NDArray[np.float64], NDArray[np.intp]]:
+            workers: int) -> tuple[NDArray[np.float64], NDArray[np.intp], float]:
     """Each query's frame neighbourhood: distances (inf = not in it) and indices, nearest first.
 
     Only the queries whose k-th neighbour lies within ``reach`` need more than k points, so
-    the wider search is run for those alone (on clean data, none).
+    the wider search is run for those alone (on clean data, none). Also returns the least k-th
+    distance: a reach below it keeps every frame to the k nearest.
     """
     width = min(WIDE * k, tree.n - 1)
     dist, idx = _neighbourhoods(tree, query, own, k, workers)
+    least = float(dist[:, -1].min())
     need = np.arange(len(query)) if reach is None else np.flatnonzero(dist[:, -1] < reach)
     if width == k or len(need) == 0:
-        return dist, idx
+        return dist, idx, least
     wide_dist = np.full((len(query), width), np.inf)
     wide_idx = np.zeros((len(query), width), dtype=np.intp)
     wide_dist[:, :k], wide_idx[:, :k] = dist, idx
     wide_dist[need], wide_idx[need] = _neighbourhoods(tree, query[need], own[need], width, workers)
     if reach is not None:
         wide_dist[wide_dist > np.maximum(reach, wide_dist[:, k - 1:k])] = np.inf
-    return wide_dist, wide_idx
+    return wide_dist, wide_idx, least
 
 
 def fit_local(ref: NDArray, query: NDArray, own: NDArray[np.intp], k: int, reach: float | None,
@@ -107,13 +113,13 @@ def fit_local(ref: NDArray, query: NDArray, own: NDArray[np.intp], k: int, reach
     own : (n,) index of each query point in ``ref``, or -1: left out of its own fit
     k : points per fit
     reach : radius of the frame's neighbourhood, or None for the widest (``WIDE * k`` points).
-        The k nearest are always in it, so a radius below their distance keeps only them: on
-        clean data that keeps the two sides of a thin part apart.
+        The k nearest are always in it, so a radius below their distance (0) keeps only them:
+        on clean data that keeps the two sides of a thin part apart.
     workers : threads for the neighbour search
     """
     n = len(query)
-    dist, wide = _frames(cKDTree(ref), query, own, k, reach, workers)
-    residual, offset = np.empty(n), np.empty(n)
+    dist, wide, least = _frames(cKDTree(ref), query, own, k, reach, workers)
+    residual, offset, extent = np.empty(n), np.empty(n), np.empty(n)
     chosen = np.empty((n, k), dtype=np.intp)
     for rows in blocks(n, 4 * wide.shape[1]):
         inside = np.isfinite(dist[rows])
@@ -136,21 +142,25 @@ def fit_local(ref: NDArray, query: NDArray, own: NDArray[np.intp], k: int, reach
         residual[rows] = np.abs(value) / np.sqrt(1.0 + np.minimum(leverage, _LEVERAGE_CAP))
         mean = u.mean(axis=1)
         rms = np.sqrt(np.einsum("mkt,mkt->m", u - mean[:, None], u - mean[:, None]) / k)
+        extent[rows] = rms
         with np.errstate(divide="ignore", invalid="ignore"):
             offset[rows] = np.where(rms > 0, np.sqrt(np.einsum("mt,mt->m", mean, mean)) / rms, 0.0)
-    return LocalFit(residual, offset, chosen)
+    return LocalFit(residual, offset, chosen, extent, least)
 
 
-def _solve(design: NDArray, h: NDArray, w: NDArray) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Weighted least squares per row: the coefficients and the leverage of a unit-weight point at u = 0."""
+def _solve(design: NDArray, h: NDArray, w: NDArray, leverage: bool = False):
+    """Weighted least squares per row: the coefficients, and with ``leverage`` that of a
+    unit-weight point at u = 0 (inv(normal)[0, 0])."""
     m, _, p = design.shape
     weighted = design * w[..., None]
     normal = np.matmul(weighted.transpose(0, 2, 1), design) + 1e-9 * np.eye(p)  # u is in [-1, 1]
+    rhs = np.matmul(weighted.transpose(0, 2, 1), h[..., None])
+    if not leverage:
+        return np.linalg.solve(normal, rhs)[:, :, 0], None
     e0 = np.zeros((m, p, 1))
     e0[:, 0, 0] = 1.0
-    rhs = np.concatenate([np.matmul(weighted.transpose(0, 2, 1), h[..., None]), e0], axis=2)
-    solution = np.linalg.solve(normal, rhs)
-    return solution[:, :, 0], solution[:, 0, 1]  # inv(normal)[0, 0] is the leverage at u = 0
+    solution = np.linalg.solve(normal, np.concatenate([rhs, e0], axis=2))
+    return solution[:, :, 0], solution[:, 0, 1]
 
 
 def _irls(design: NDArray, h: NDArray) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -163,5 +173,6 @@ def _irls(design: NDArray, h: NDArray) -> tuple[NDArray[np.float64], NDArray[np.
         floor = 1e-12 * np.abs(h).max(axis=1) + 1e-300  # exact data: keep every point
         t = r / (_TUKEY * np.maximum(scale, floor))[:, None]
         w = np.where(np.abs(t) < 1.0, (1.0 - t * t) ** 2, 0.0)
-    beta, leverage = _solve(design, h, w)
+    beta, leverage = _solve(design, h, w, leverage=True)
     return beta[:, 0], leverage
+

@@ -4,18 +4,22 @@
 sample. Three steps, each measured on the development data (``experiments/outlier_scores.py``):
 
 1. **A dense seed.** Samples of a curve or surface are much denser than points strewn in its
-   box: the distance to the 8th neighbour is several times shorter. The seed is the points whose
-   distance is at most twice the typical one (robust mode and width of its logarithm, the
-   shortest half), or within one width of it where the sampling is irregular.
+   box: their distance to the 8th neighbour is several times shorter. The seed is the points
+   whose distance is at most twice the typical one (the mode of its logarithm, found as the
+   shortest half of the values, which holds samples only even among 40 % strays), or within
+   one width of that half where the sampling is irregular.
 2. **Local surfaces, a few rounds.** Each point's offset from a quadric fitted to the reference
-   points around it (the seed at first, point itself left out, see :mod:`.local`) is compared
-   with the noise scale (the median offset of the reference points, as a Gaussian σ) or, where
-   the shape is rougher than that (corners, creases, a coarse mesh), the offsets of its
-   reference neighbours. Points off their surface, or beyond its end, leave the reference.
+   points around it (the seed at first; the point itself left out; in a frame of the k nearest
+   at first, then of the points within 4 noise scales, see :mod:`.local`) is
+   compared with the noise scale, the Gaussian σ of the reference points' offsets (the
+   half-normal part of a half-normal + uniform mixture, so that strays left in the reference
+   do not inflate it), or, where the shape is rougher than the noise (corners, creases, a
+   coarse mesh), with the offsets of its reference neighbours. Points off their surface or
+   beyond its end leave the reference; sparse points well on it (the far side of a hole) join.
 3. **Weights.** The score is the larger of the offset over 3.5 of those scales and the
-   distance beyond the neighbours over 3 of their spreads: 1 is the threshold. The weight
-   1 / (1 + score⁴) is near 1 for samples and falls off past the threshold, so that a fit can
-   weight points instead of deleting them.
+   distance beyond the neighbours over 4 of their spreads: 1 is the threshold. The weight
+   1 / (1 + score⁴) (a Cauchy-type weight) is near 1 for samples, 0.5 at the threshold and
+   falls off past it, so that a fit can weight points instead of deleting them.
 """
 
 from __future__ import annotations
@@ -39,32 +43,40 @@ __all__ = ["OutlierScore", "score_outliers", "check_outliers", "DEFAULT_K"]
 # σ on the development contours and meshes at noise 0.5-1 % of the box diagonal; wider
 # neighbourhoods take in the shape's detail (beetle legs, the bottle's neck) and overestimate it.
 DEFAULT_K = {2: 10, 3: 12}
-_DENSITY_K = 8  # log d_8 of samples spreads about 1/(D·√8): narrow enough to stand out from strays
+# The seed: log d_8 of samples spreads about 1/(D·√8), narrow enough for strays to stand out.
+_DENSITY_K = 8
 _SEED_WIDTHS = 1.0
 _SEED_RATIO = 2.0
+# Points outside the reference join it when their score is below _READMIT and their 8th
+# neighbour at most 4 times farther than the typical one: the far side of a hole in a random
+# sampling, whose points the seed leaves out. Joining at the threshold instead lets strays in
+# that pull the reference off noisy shapes; a lower bar leaves holes' edges flagged.
+_SPARSE_RATIO = 4.0
+_READMIT = 0.5
 # The frame of a local fit reaches this many noise scales (see local.py): enough for its PCA to
 # see the shape through the noise, and no more, so that thin parts stay apart on clean data.
 _FRAME_REACH = 4.0
 _ROUNDS = 3
-# Thresholds, in scales: an offset beyond 3.5 σ (0.05 % of Gaussian samples), a position beyond
-# 3 RMS spreads of the neighbours along the tangent (a point amid them is below 1).
+# Thresholds, in scales: an offset beyond 3.5 σ (0.05 % of Gaussian samples); a position beyond
+# 4 RMS spreads of the neighbours along the tangent (a point amid them is below 1, at the end of
+# a run of samples about 2).
 _OFFSET_CUT = 3.5
-_BEYOND_CUT = 3.0
-# Roughness: the 90th percentile of the reference neighbours' offsets, as a Gaussian σ; a
-# point at a corner or crease is judged against it, capped at 2 spacings or 2 noise scales ...
+_BEYOND_CUT = 4.0
+# Roughness: the 90th percentile of the reference neighbours' offsets, as a Gaussian σ; a point
+# at a corner, a crease or on a coarse mesh is judged against it. Capped at 2 spacings or 2
+# noise scales, and at a quarter of the neighbours' spread along the tangent: a point among
+# strays that stayed in the reference sees offsets a third of that spread, and must not pass.
 _ROUGH_QUANTILE = 0.9
 _ROUGH_CAP_SPACINGS = 2.0
 _ROUGH_CAP_SCALES = 2.0
+_ROUGH_CAP_EXTENT = 0.25
 # ... and no scale is below 5 % of the spacing: clean synthetic data has a noise scale of 1e-6.
 _FLOOR_SPACINGS = 0.05
-_READMIT = 0.5
-_MIXTURE = True
 _MODES = ("auto", "none")
 # 'auto' acts only on evidence of strays: at least this share of the points scores beyond
-# _EVIDENCE_SCORE. Clean shapes' sharp or sparse parts score just past 1 (on 155 of the 158
-# development shapes under 2 % of points beyond 3; the exceptions are thin, sparse meshes:
-# scissors, kerolamp, walkman); 10 % planted strays put 2.1-12 % of the points beyond it. Below
-# the evidence nothing is left out, so a clean cloud is fitted exactly as with 'none'.
+# _EVIDENCE_SCORE. Clean shapes' sharp or sparse parts score just past 1; planted strays put
+# far more of the points beyond 3 (experiments/outlier_flags.py). Below the evidence nothing is
+# left out, so a clean cloud is fitted exactly as with 'none'.
 _EVIDENCE_SCORE = 3.0
 _EVIDENCE_SHARE = 0.02
 
@@ -84,15 +96,18 @@ class OutlierScore:
         1 / (1 + score⁴) (``outliers='auto'``): near 1 for samples of the shape, 0.5 at the
         threshold, small far from it. All 1 for ``outliers='none'``, and for 'auto' when
         under 2 % of the points score beyond 3 (no evidence of strays: a clean shape's sharp
-        or sparse parts score just past the threshold, and are kept).
+        or sparse parts score just past the threshold, and are kept); see
+        :func:`score_outliers` for a forced fraction.
     inliers : (N,) bool array
         ``weights >= 0.5``.
     score : (N,) array >= 0
         The outlier score: 1 at the threshold (see the module notes).
     noise_scale : float
-        The Gaussian σ of the inliers' offsets from the shape, in the points' units.
+        The Gaussian σ of the inliers' offsets from the shape, in the points' units. On clean
+        data, the shape's own roughness at the scale of k samples (pixel steps, facets).
     spacing : float
-        The median distance from an inlier to its nearest other inlier (distinct positions).
+        The median distance from an inlier to its nearest other inlier (distinct positions;
+        the inliers the data say, score <= 1, whatever ``outliers`` forces).
     outlier_share : float
         The share of points that are not inliers.
     mode : 'auto', 'none' or float
@@ -151,20 +166,20 @@ def _shorth(values: NDArray) -> tuple[float, float]:
     return 0.5 * (x[j] + x[j + half]), widths[j] / 2.0 / norm.ppf(0.75)
 
 
-def _seed(tree: cKDTree, counts: NDArray, workers: int) -> NDArray[np.bool_]:
+def _seed(tree: cKDTree, counts: NDArray, workers: int) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+    """The dense points, and those whose density is at most _SPARSE_RATIO times below the typical."""
     k = min(_DENSITY_K, tree.n - 1)
-    dist = tree.query(tree.data, k=k + 1, workers=workers)[0][:, k]
-    log = np.log(np.maximum(dist, np.finfo(float).tiny))
+    log = np.log(np.maximum(tree.query(tree.data, k=k + 1, workers=workers)[0][:, k], np.finfo(float).tiny))
     mode, width = _shorth(np.repeat(log, counts))  # every input point counts, duplicates too
-    return log <= mode + max(_SEED_WIDTHS * width, np.log(_SEED_RATIO))
+    return log <= mode + max(_SEED_WIDTHS * width, np.log(_SEED_RATIO)), log <= mode + np.log(_SPARSE_RATIO)
 
 
 def _rounds(points: NDArray, counts: NDArray, k: int, workers: int):
     """Score every point against the reference surfaces, refined over a few rounds."""
     n = len(points)
     tree = cKDTree(points)
-    ref = _seed(tree, counts, workers)
-    reach = None
+    ref, sparse = _seed(tree, counts, workers)
+    reach = 0.0  # the first round knows no noise scale: fits on the k nearest (see local.py)
     for _ in range(_ROUNDS):
         at = np.flatnonzero(ref)
         own = np.full(n, -1)
@@ -176,25 +191,29 @@ def _rounds(points: NDArray, counts: NDArray, k: int, workers: int):
         spacing = float(np.median(np.repeat(nearest, weights)))
         rough = np.quantile(fit.residual[at][fit.neighbours], _ROUGH_QUANTILE, axis=1)
         rough /= norm.ppf(0.5 + _ROUGH_QUANTILE / 2)
-        cap = max(_ROUGH_CAP_SCALES * sigma, _ROUGH_CAP_SPACINGS * spacing)
+        cap = np.minimum(max(_ROUGH_CAP_SCALES * sigma, _ROUGH_CAP_SPACINGS * spacing), _ROUGH_CAP_EXTENT * fit.extent)
         scale = np.maximum(np.minimum(rough, cap), max(sigma, _FLOOR_SPACINGS * spacing))
         score = np.maximum(fit.residual / scale / _OFFSET_CUT, fit.offset / _BEYOND_CUT)
-        # Points leave the reference past the threshold; points outside come in only well inside
-        # it (letting strays back in at the threshold pulls the reference off a noisy shape).
-        kept = (ref & (score < 1.0)) | (score < _READMIT)
-        if kept.sum() > k:
-            ref = kept
-        reach = _FRAME_REACH * sigma
+        # Points leave the reference past the threshold. Points outside it come back in only if
+        # well inside the threshold and not much sparser than the samples (the far side of a
+        # hole in a random sampling): strays let back in pull the reference off noisy shapes.
+        kept = (ref & (score < 1.0)) | (sparse & (score < _READMIT))
+        if kept.sum() <= k:
+            kept = ref
+        # the same reference and frames of the k nearest again: the same fits (clean data)
+        if np.array_equal(kept, ref) and max(reach, _FRAME_REACH * sigma) < fit.widest:
+            break
+        ref, reach = kept, _FRAME_REACH * sigma
     return score, sigma
 
 
 def _gaussian_scale(residuals: NDArray, counts: NDArray) -> float:
-    """Gaussian σ of absolute residuals, each counted ``counts`` times: their median over 0.6745,
-    refined (_MIXTURE) as the half-normal part of a half-normal + uniform mixture."""
+    """Gaussian σ of absolute residuals (each counted ``counts`` times): the half-normal part of a
+    half-normal + uniform mixture, fitted by EM from the median over 0.6745."""
     r = np.repeat(residuals, counts)
     sigma = float(np.median(r) / norm.ppf(0.75))
     top = float(r.max())
-    if not _MIXTURE or sigma <= 0.0 or top <= 0.0:
+    if not (sigma > 0.0 and top > 0.0):
         return sigma
     share = 0.9
     for _ in range(30):
@@ -222,10 +241,12 @@ def score_outliers(points: ArrayLike, *, outliers="auto", k: int | None = None,
     ----------
     points : (N, D) array, D = 2 or 3, with at least k + 2 distinct points
     outliers : 'auto', 'none' or float
-        'auto' decides from the data; 'none' makes every point an inlier of weight 1 (the
-        noise scale and spacing are estimated as in 'auto'); a fraction F in [0, 0.9) marks
-        exactly round(F·N) highest-scored points as outliers (ties broken by coordinates), the
-        weights scaled so that those and only those are below 0.5.
+        'auto' decides from the data: outliers are the points scored above 1, when at least
+        2 % of the points score beyond 3 (otherwise there are none). 'none' makes
+        every point an inlier of weight 1. A fraction F in [0, 0.9) marks exactly round(F·N)
+        highest-scored points as outliers (ties broken by coordinates), the weights
+        1 / (1 + (score / cut)⁴) with the cut between them and the rest, so that those and only
+        those are below 0.5. The score, noise scale and spacing do not depend on ``outliers``.
     k : int, optional
         Points in each local fit; default 10 in 2D, 12 in 3D (:data:`DEFAULT_K`), at least 5
         in 2D and 8 in 3D.
@@ -256,18 +277,12 @@ def score_outliers(points: ArrayLike, *, outliers="auto", k: int | None = None,
         raise error("points", f"at least k + 2 = {k + 2} distinct points", f"{len(unique)}",
                     "Pass more points or a smaller k.")
     score_u, sigma = _rounds(unique, counts, k, workers)
+    # the spacing of the points the data say are inliers, whatever `outliers` forces
+    inner = unique[score_u <= 1.0]
+    spacing = float(np.median(cKDTree(inner).query(inner, k=2, workers=workers)[0][:, 1])) if len(inner) > 1 else 0.0
     score = score_u[inverse]
-    if mode == "none":
-        weights = np.ones(len(pts))
-    else:
-        weights = _weights(score, standard, mode)
-    inliers = weights >= 0.5
-    inner = np.flatnonzero(np.bincount(inverse, weights=inliers.astype(float), minlength=len(unique)) > 0)
-    if len(inner) >= 2:
-        spacing = float(np.median(cKDTree(unique[inner]).query(unique[inner], k=2, workers=workers)[0][:, 1]))
-    else:
-        spacing = 0.0
-    return OutlierScore(weights, inliers, score, sigma * unit, spacing * unit, mode)
+    weights = np.ones(len(pts)) if mode == "none" else _weights(score, standard, mode)
+    return OutlierScore(weights, weights >= 0.5, score, sigma * unit, spacing * unit, mode)
 
 
 def _weights(score: NDArray, standard: NDArray, mode: str | float) -> NDArray[np.float64]:
