@@ -30,6 +30,7 @@ from typing import TYPE_CHECKING, Any, cast
 import numpy as np
 from numpy.typing import NDArray
 
+from ._utils.foreign import foreign_parts
 from ._utils.validation import as_faces, as_matching, as_normals, as_points, check_int, error
 
 __all__ = ["Cloud", "as_cloud"]
@@ -234,8 +235,15 @@ def as_cloud(points, normals=None, *, faces=None, name: str = "points", dims=(2,
     ``required_by``, :func:`~ipfit._utils.validation.as_faces`) into a transient cloud.
 
     The public functions that take points call this once at their entry and pass the cloud
-    down; below it nothing is checked again.
+    down; below it nothing is checked again. A trimesh, Open3D or PyVista object, or a
+    DataFrame, gives its points, and its normals and faces when it has them
+    (:mod:`ipfit._utils.foreign`); ``normals`` or ``faces`` given as well take their place.
     """
+    parts = foreign_parts(points, name)
+    if parts is not None:
+        points = parts.points
+        normals = parts.normals if normals is None else normals
+        faces = parts.faces if faces is None else faces
     if isinstance(points, Cloud):
         for given, what in ((normals, "normals"), (faces, "faces")):
             if given is not None:

@@ -28,6 +28,14 @@ class InvalidInputError(IpfitError, ValueError):
     """
 
 
+def error(name: str, expected: str, got: str, fix: str = "") -> InvalidInputError:
+    """Build the library's standard caller error (returned, so callers write ``raise``)."""
+    message = f"{name}: expected {expected}, got {got}."
+    if fix:
+        message += f" {fix}"
+    return InvalidInputError(message)
+
+
 class ReadError(InvalidInputError):
     """A file could not be read as points (missing, empty, truncated, unknown format...).
 

@@ -23,6 +23,7 @@ EXTRAS = {
     "laspy": "scanners", "lazrs": "scanners", "pye57": "scanners", "pypcd4": "scanners", "lxml": "scanners",
     "collada": "scanners",
     "sympy": "sympy",
+    "open3d": "open3d", "pyvista": "pyvista",
 }
 
 

@@ -15,7 +15,8 @@ from typing import Any, overload
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..exceptions import InvalidInputError
+from ..exceptions import error  # the one message template; imported from here throughout
+from .foreign import foreign_parts
 
 __all__ = [
     "error",
@@ -34,14 +35,6 @@ __all__ = [
     "check_rng",
     "check_enough_points",
 ]
-
-
-def error(name: str, expected: str, got: str, fix: str = "") -> InvalidInputError:
-    """Build the library's standard caller error (returned, so callers write ``raise``)."""
-    message = f"{name}: expected {expected}, got {got}."
-    if fix:
-        message += f" {fix}"
-    return InvalidInputError(message)
 
 
 def _describe(value: Any) -> str:
@@ -73,7 +66,8 @@ def as_points(points: ArrayLike, name: str = "points", *, dims=(2, 3), min_point
     Accepted: arrays and nested lists of real numbers (integers or floats of any width, also
     ``np.matrix``, without a warning); masked arrays with no element masked; pandas DataFrames
     with columns named x, y[, z] (nx, ny[, nz] when ``name`` is "normals"), in any case, the
-    other columns ignored. Refused, each with one :class:`InvalidInputError` line naming
+    other columns ignored; the points of trimesh, Open3D and PyVista objects
+    (:mod:`ipfit._utils.foreign`). Refused, each with one :class:`InvalidInputError` line naming
     ``name``: booleans, complex numbers, text, dates, Python objects and ragged lists; other
     DataFrames; masked arrays with masked elements (drop those rows first with
     ``np.ma.compress_rows``: a masked coordinate has no value to fit); generators and iterators
@@ -110,6 +104,9 @@ def _real_array(value: Any, name: str, dims) -> NDArray[np.float64]:
         raise error(name, expected, f"a {type(value).__name__}", "Pass a list or an array with one point per row.")
     if hasattr(value, "columns") and hasattr(value, "to_numpy"):
         return _frame_coordinates(value, name)
+    parts = foreign_parts(value, name)  # a trimesh, Open3D or PyVista object: its points
+    if parts is not None:
+        value = parts.points
     if isinstance(value, np.ma.MaskedArray):
         masked = np.ma.getmaskarray(value)
         rows = masked.reshape(len(masked), -1).any(axis=1) if masked.ndim else masked.reshape(1)

@@ -16,7 +16,8 @@ import os
 
 import numpy as np
 
-from .._utils.validation import check_int, check_rng
+from .._utils.foreign import ForeignParts, foreign_parts
+from .._utils.validation import as_points, check_int, check_rng
 from ..cloud import Cloud
 from ..exceptions import ReadError
 from ..io._base import MIN_POINTS, as_path
@@ -26,15 +27,18 @@ from . import bundled
 __all__ = ["load"]
 
 
-def load(spec: str | os.PathLike, *, max_points: int | None = None, rng=0) -> Cloud:
-    """Read a point file, or a bundled dataset by name.
+def load(spec: str | os.PathLike | object, *, max_points: int | None = None, rng=0) -> Cloud:
+    """Read a point file, or a bundled dataset by name, or take another library's geometry.
 
     Parameters
     ----------
-    spec : str or path
+    spec : str, path or geometry object
         A path to any file :func:`ipfit.read_points` reads, or (a str naming no existing
         file) the name of a bundled dataset, in any case (``ipfit.dataset_names()``). A file
-        of that name wins over the dataset.
+        of that name wins over the dataset. Or a ``trimesh.Trimesh``/``PointCloud``, an Open3D
+        ``PointCloud``/``TriangleMesh``, a PyVista ``PolyData`` or a pandas DataFrame: its
+        points, and its normals and faces when it has them (:mod:`ipfit._utils.foreign`), as
+        they are (duplicates not merged, normals not estimated).
     max_points : int, optional
         Keep at most this many points, drawn at random without replacement (order kept).
         A subsample has no faces: they indexed the points before the draw.
@@ -57,6 +61,9 @@ def load(spec: str | os.PathLike, *, max_points: int | None = None, rng=0) -> Cl
     InvalidInputError
         ``max_points`` is not an integer >= 3, or ``rng`` is not a seed.
     """
+    parts = foreign_parts(spec, "spec")
+    if parts is not None:
+        return _from_object(parts, max_points, rng)
     path = as_path(spec, "spec")
     if max_points is not None:
         max_points = check_int(max_points, "max_points", minimum=MIN_POINTS)
@@ -79,3 +86,19 @@ def load(spec: str | os.PathLike, *, max_points: int | None = None, rng=0) -> Cl
         points, normals, faces = points[keep], None if normals is None else normals[keep], None
     return Cloud(points, normals, faces, name=name, source=name, n_file=len(dataset.points),
                  normals_source=dataset.normals_source)
+
+
+def _from_object(parts: ForeignParts, max_points: int | None, rng) -> Cloud:
+    """A Cloud of a foreign object's arrays as they are (a file's normals are not normalised
+    either), subsampled as a file's would be."""
+    points = as_points(parts.points)
+    normals = None if parts.normals is None else as_points(parts.normals, "normals")
+    faces = parts.faces
+    if max_points is not None:
+        max_points = check_int(max_points, "max_points", minimum=MIN_POINTS)
+    generator = check_rng(rng)
+    n_file = len(points)
+    if max_points is not None and len(points) > max_points:
+        keep = np.sort(generator.choice(len(points), max_points, replace=False))
+        points, normals, faces = points[keep], None if normals is None else normals[keep], None
+    return Cloud(points, normals, faces, name=parts.kind.split(".")[-1], source=parts.kind, n_file=n_file)

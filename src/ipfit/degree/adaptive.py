@@ -19,6 +19,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .. import basis
 from .._result_schema import check_coordinates
+from .._utils.foreign import is_foreign
 from .._utils.result import Result
 from .._utils.validation import (
     as_faces,
@@ -273,9 +274,12 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
     Parameters
     ----------
     points : (N, 2) or (N, 3) array, or a :class:`~ipfit.Cloud` (e.g. :func:`ipfit.load`'s): then
-        its normals (estimated when it has none) and faces are used.
-    normals : (N, dim) array, or None to estimate them (:func:`ipfit.estimate_normals`); None
-        with a cloud.
+        its normals (estimated when it has none) and faces are used; or a ``trimesh.Trimesh`` or
+        ``PointCloud``, an Open3D ``PointCloud`` or ``TriangleMesh``, a PyVista ``PolyData`` or
+        a pandas DataFrame (x, y[, z] columns): its points, and its normals and faces when it has
+        them (:mod:`ipfit._utils.foreign`).
+    normals : (N, dim) array, or None to estimate them (:func:`ipfit.estimate_normals`) or to take
+        a geometry object's; None with a cloud.
     method : a fixed-degree method: a refinement ('de+polish' (default), 'pso+polish', 'de',
         'pso', 'polish'), a linear fit ('lstsq', 'taubin', '3l', 'ridge', 'gradient_one',
         '3l-far'), or a callable ``(points, normals, degree) -> ImplicitPolynomial`` (use
@@ -338,8 +342,9 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
     (2, True)
     """
     given: Cloud | None
-    if isinstance(points, Cloud):
-        given = as_cloud(points, normals, faces=faces)  # refuses normals, faces
+    if isinstance(points, Cloud) or is_foreign(points):
+        # a Cloud refuses normals and faces; a trimesh/Open3D/PyVista object or a DataFrame gives its own
+        given = as_cloud(points, normals, faces=faces)
         pts = given.points
     else:
         given = None

@@ -26,6 +26,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .. import basis
+from .._utils.optional import require
 from .._utils.validation import as_points, check_int, check_nonnegative, error
 from ..geometry.distance import Samples, sample_segments, sample_triangles
 from ..polynomial import ImplicitPolynomial
@@ -316,14 +317,33 @@ class ZeroSet:
         return trim_zero_set(self, points, distance, faces=faces)
 
     # -- export -------------------------------------------------------------------------
-    def to_trimesh(self):
-        """3D: the mesh as a ``trimesh.Trimesh`` (vertices unmerged, unprocessed)."""
+    def _mesh_for(self, library: str) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
         if self.dim != 3:
             raise error("zero set", "a 3D zero set (a mesh)", "a 2D zero set (curves)",
-                        "Write 2D zero sets as SVG or CSV.")
+                        f"Only surfaces become {library} meshes; write 2D zero sets as SVG or CSV.")
+        if self.vertices is None or self.faces is None:  # no surface in the box
+            return np.empty((0, 3)), np.empty((0, 3), dtype=np.int64)
+        return self.vertices, self.faces
+
+    def to_trimesh(self):
+        """3D: the mesh as a ``trimesh.Trimesh`` (vertices unmerged, unprocessed)."""
+        vertices, faces = self._mesh_for("trimesh")
         import trimesh
 
-        return trimesh.Trimesh(vertices=self.vertices, faces=self.faces, process=False)
+        return trimesh.Trimesh(vertices=vertices, faces=faces, process=False)
+
+    def to_open3d(self):
+        """3D: the mesh as an ``open3d.geometry.TriangleMesh`` (``pip install 'ipfit[open3d]'``)."""
+        vertices, faces = self._mesh_for("Open3D")
+        o3d = require("open3d", "ZeroSet.to_open3d")
+        return o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(vertices), o3d.utility.Vector3iVector(faces))
+
+    def to_pyvista(self):
+        """3D: the mesh as a ``pyvista.PolyData`` (``pip install 'ipfit[pyvista]'``)."""
+        vertices, faces = self._mesh_for("PyVista")
+        pv = require("pyvista", "ZeroSet.to_pyvista")
+        cells = np.column_stack([np.full(len(faces), 3, dtype=np.int64), faces]).ravel()
+        return pv.PolyData(vertices, cells)
 
     def save(self, path: str | os.PathLike) -> None:
         """Write to ``path`` by extension: .ply/.obj/.stl (3D), .svg/.csv (2D); atomically."""
