@@ -299,3 +299,20 @@ def test_bad_inlier_masks_give_one_line_errors(inliers, expected):
     with pytest.raises(InvalidInputError, match=r"^inliers: expected") as info:
         estimate_normals(synthetic.sphere(500).points, inliers=inliers)
     assert expected in str(info.value)
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_repeated_vertices_count_in_the_density(seed):
+    """A mesh's vertices repeated along its seams are that much denser than strays: 600 positions
+    of a sphere given 5 times each, and 25 % strays (750, more than the positions), all found."""
+    rng = np.random.default_rng(seed)
+    positions = synthetic.sphere(600, rng=rng).points
+    samples = np.repeat(positions, 5, axis=0)
+    strays = rng.uniform(-1.4, 1.4, size=(750, 3))
+    strays = strays[np.linalg.norm(strays, axis=1) > 1.1]  # off the sphere by more than the spacing
+    cloud = np.vstack([samples, strays])
+    order = rng.permutation(len(cloud))
+    result = score_outliers(cloud[order])
+    is_stray = np.arange(len(cloud))[order] >= len(samples)
+    assert np.mean(~result.inliers[is_stray]) >= 0.95
+    assert np.mean(~result.inliers[~is_stray]) <= 0.01
