@@ -169,13 +169,13 @@ def _shorth(values: NDArray) -> tuple[float, float]:
 def _seed(tree: cKDTree, counts: NDArray, workers: int) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
     """The dense points, and those whose density is at most _SPARSE_RATIO times below the typical.
 
-    A position given several times counts that many times in its neighbours' density too: a
-    mesh's vertices repeated along its seams (the bundled duck: 30,083 rows, 5,482 positions)
-    are that much denser than strays, which never coincide. Counted once, such samples were
-    outnumbered by 25 % of strays and the seed took them in (measured: 34 % of them found).
+    A position given more than once is a sample whatever its density, and its copies count in
+    its neighbours' density: uniform strays never coincide, a mesh's vertices repeated along its
+    seams do (the bundled duck: 30,083 rows, 5,482 positions). Counted once, 25 % of strays
+    outnumbered the duck's positions and the seed took them in (34 % of them found, 95 % now).
     """
     k = min(_DENSITY_K, int(counts.sum()) - 1)
-    # the k-th nearest other point, duplicates included: the first column whose cumulative count
+    # the k-th nearest other point, copies included: the first column whose cumulative count
     # (the point's own copies beyond itself, then each neighbour's) reaches k
     dist, idx = tree.query(tree.data, k=min(k + 1, tree.n), workers=workers)
     dist, idx = dist.reshape(tree.n, -1), idx.reshape(tree.n, -1)
@@ -184,7 +184,9 @@ def _seed(tree: cKDTree, counts: NDArray, workers: int) -> tuple[NDArray[np.bool
     kth = np.where(within[:, -1] >= k, np.take_along_axis(dist, column[:, None], 1)[:, 0], dist[:, -1])
     log = np.log(np.maximum(kth, np.finfo(float).tiny))
     mode, width = _shorth(np.repeat(log, counts))  # every input point counts, duplicates too
-    return log <= mode + max(_SEED_WIDTHS * width, np.log(_SEED_RATIO)), log <= mode + np.log(_SPARSE_RATIO)
+    repeated = counts > 1
+    return (repeated | (log <= mode + max(_SEED_WIDTHS * width, np.log(_SEED_RATIO))),
+            repeated | (log <= mode + np.log(_SPARSE_RATIO)))
 
 
 def _rounds(points: NDArray, counts: NDArray, k: int, workers: int):
