@@ -41,7 +41,7 @@ from .._utils.validation import (
 from ..cloud import Cloud, as_cloud
 from ..exceptions import ConditioningWarning
 from ..polynomial import ImplicitPolynomial, Normalization
-from .farfield import far_field_samples
+from .farfield import VOTERS, confident_mask, far_field_samples
 
 __all__ = [
     "fit_lstsq",
@@ -296,7 +296,9 @@ def _far_field_block(problem: _Problem, n_rows: float, far_row_weight: float, c:
     """Far-field rows whose total weight is ``far_row_weight`` times the data rows' weight ``n_rows``."""
     if far_row_weight <= 0:
         return [], 0
-    samples, targets = far_field_samples(problem.u, problem.normals, c=c)
+    keep = confident_mask(problem.weights, problem.n_points)  # every point without weights
+    robust = {} if problem.weights is None else {"voters": VOTERS}  # see farfield's notes
+    samples, targets = far_field_samples(problem.u[keep], cast(NDArray, problem.normals)[keep], c=c, **robust)
     if len(samples) == 0:
         return [], 0
     root = np.sqrt(far_row_weight * n_rows / len(samples))

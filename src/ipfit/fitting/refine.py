@@ -54,7 +54,7 @@ from ..geometry.sampling import spread_subsample
 from ..optimize import DifferentialEvolution, OptimizeResult, ParticleSwarm
 from ..optimize import polish as lbfgs
 from ..polynomial import ImplicitPolynomial, Normalization
-from .farfield import FarFieldTerm
+from .farfield import VOTERS, FarFieldTerm, confident_cloud
 from .objective import TAUBIN_CAP, Measures, Objective, single_threaded_blas
 from .options import DEFAULT_DELTA, DEFAULT_METHOD, RECOMMENDED, REFINE_METHODS, MethodOptions, SearchOptions
 from .starts import START_POINTS, StartFits, initial_population, start_fits
@@ -272,23 +272,24 @@ def _objectives(cloud: Cloud, degree, delta, settings: MethodOptions, keep_clear
     subsampled, the float64 objective on that subsample (the first polish stage). A weighted
     cloud's objectives weight its points and truncate the Taubin term at ``cap``."""
     norm, whole = _normalised(cloud, None)
-    u, unit_normals = whole.points, whole.oriented
     weight = settings.far_term_weight
 
     extra = []
     if keep_clear is not None:
         places = norm.apply(keep_clear)
-        extra = [FarFieldTerm(places, _clear_targets(u, unit_normals, places), degree, weight)]
+        data = confident_cloud(whole)
+        extra = [FarFieldTerm(places, _clear_targets(data.points, data.oriented, places), degree, weight)]
 
     def build(part: Cloud, dtype=np.float64):
-        terms = [FarFieldTerm.from_data(part, None, degree, weight)] if weight > 0 else []
+        robust = {} if part.weights is None else {"voters": VOTERS}  # see farfield's notes
+        terms = [FarFieldTerm.from_data(confident_cloud(part), None, degree, weight, **robust)] if weight > 0 else []
         return Objective(part.points, part.oriented, degree, delta, dtype=dtype, terms=terms + extra,
                          weights=part.weights, cap=cap)
 
     obj64 = build(whole)
     dtype = np.dtype(settings.dtype)
     n_search = settings.search_points
-    if n_search is not None and len(u) > n_search:
+    if n_search is not None and len(whole) > n_search:
         sub = _normalised(cloud, n_search)[1]
         sub64 = build(sub)
         obj_pop = sub64 if dtype == np.float64 else build(sub, dtype)
