@@ -14,7 +14,7 @@ import pytest
 from numeric_checks import value_grad_and_differences
 
 import ipfit
-from ipfit import Cloud, ImplicitPolynomial, InvalidInputError, Normalization, basis, estimate_normals, fit_linear
+from ipfit import Cloud, ImplicitPolynomial, InvalidInputError, Normalization, basis, fit_linear
 from ipfit.cloud import as_cloud
 from ipfit.datasets import synthetic
 from ipfit.fitting.farfield import far_field_samples
@@ -129,14 +129,16 @@ def _ellipse_error(poly: ImplicitPolynomial) -> float:
 
 
 @pytest.mark.parametrize("offset", range(5))
-def test_reweighted_start_fits_ignore_strays_left_in(seed, offset):
+@pytest.mark.parametrize("method", ["3l", "taubin"])
+def test_reweighted_start_fits_ignore_strays_left_in(seed, offset, method):
     rng = np.random.default_rng(seed + offset)
     shape = synthetic.ellipse(300, a=2.0, b=1.0, rng=rng, random=True)
-    extra, _ = _strays(shape.points, 0.2, rng)
-    pts = np.vstack([shape.points, extra])
-    normals = estimate_normals(pts)
+    extra, extra_normals = _strays(shape.points, 0.2, rng)
+    # a scanner's normals: right on the shape, anything on the strays (normals estimated among
+    # strays can be flipped along whole arcs, which no weighting of the points mends)
+    pts, normals = np.vstack([shape.points, extra]), np.vstack([shape.normals, extra_normals])
     norm = Normalization.from_points(pts)
-    fits = [parse_start_fit("3l")]
+    fits = [parse_start_fit(method)]
     # weights all 1: the score was told to keep every point, so only the reweighting can help
     weighted = Cloud(pts, normals, weights=np.ones(len(pts)))
     irls = start_fits(weighted, 2, norm, fits, None, False, scale=robust_scale(weighted))
@@ -150,9 +152,9 @@ def test_reweighted_start_fits_ignore_strays_left_in(seed, offset):
 # -- the objective's weights and truncation -------------------------------------------------------
 def test_unit_weights_and_the_default_cap_are_the_plain_objective(rng):
     shape = synthetic.torus(300, rng=rng)
-    population = shape.polynomial.coefficients + 0.2 * rng.normal(size=(9, 15))
-    plain = Objective(shape.points, shape.normals, 2)
-    ones = Objective(shape.points, shape.normals, 2, weights=np.ones(300), cap=TAUBIN_CAP)
+    population = shape.polynomial.coefficients + 0.2 * rng.normal(size=(9, 35))
+    plain = Objective(shape.points, shape.normals, 4)
+    ones = Objective(shape.points, shape.normals, 4, weights=np.ones(300), cap=TAUBIN_CAP)
     np.testing.assert_allclose(ones(population), plain(population), rtol=1e-13)
     np.testing.assert_allclose(ones.measures(population).smoothness, plain.measures(population).smoothness, rtol=1e-13)
     (v1, g1), (v0, g0) = ones.value_and_grad(population[0]), plain.value_and_grad(population[0])
@@ -205,21 +207,25 @@ def test_a_stray_with_a_wrong_normal_is_outvoted_on_the_side_of_the_far_field():
 
 
 # -- end to end: strays the score misses -----------------------------------------------------------
-@pytest.mark.parametrize("offset", range(5))
-def test_strays_the_score_misses_stop_pulling_the_fit(seed, offset):
-    seed += offset
-    rng = np.random.default_rng(seed)
-    shape, normals = _cassini(400, rng)
-    extra, extra_normals = _strays(shape, 0.15, rng)
-    pts, nrm = np.vstack([shape, extra]), np.vstack([normals, extra_normals])
-    # 5 % forced while 15 % were planted: two thirds of the strays stay in the fit
-    result = ipfit.fit_adaptive(pts, nrm, outliers=0.05, max_degree=6, rng=seed)
-    kept = result.outliers.inliers
-    assert kept[len(shape):].sum() >= 0.5 * len(extra)
-    # today's fit: the same points, left out and fitted without weights or robust loss
-    plain = ipfit.fit_adaptive(pts[kept], nrm[kept], outliers="none", max_degree=6, rng=seed)
+def test_strays_the_score_misses_stop_pulling_the_fit(seed):
     truth = _cassini(2000)[0]
-    robust_f = quality(result.polynomial, truth, ordered_contour=True).f_score
-    plain_f = quality(plain.polynomial, truth, ordered_contour=True).f_score
-    assert robust_f > 0.95 and robust_f > plain_f + 0.2
-    assert score_outliers(pts, outliers=0.05).inliers.tolist() == kept.tolist()
+    robust_f, plain_f = [], []
+    for run in range(seed, seed + 5):
+        rng = np.random.default_rng(run)
+        shape, normals = _cassini(300, rng)
+        extra, extra_normals = _strays(shape, 0.25, rng)
+        pts, nrm = np.vstack([shape, extra]), np.vstack([normals, extra_normals])
+        # 5 % forced while 20 % (25 % of the shape's points) were planted: most strays stay in the fit
+        result = ipfit.fit_adaptive(pts, nrm, outliers=0.05, max_degree=4, rng=run)
+        kept = result.outliers.inliers
+        assert kept.tolist() == score_outliers(pts, outliers=0.05).inliers.tolist()
+        assert kept[len(shape):].sum() >= 0.5 * len(extra)
+        # today's fit: the same points left out, the rest fitted without weights or robust loss
+        plain = ipfit.fit_adaptive(pts[kept], nrm[kept], outliers="none", max_degree=4, rng=run)
+        robust_f.append(quality(result.polynomial, truth, ordered_contour=True).f_score)
+        plain_f.append(quality(plain.polynomial, truth, ordered_contour=True).f_score)
+    # Every robust fit finds the shape; a plain search sometimes does too (measured on seeds 0-14:
+    # 3 of 15, F 0.41-0.48 otherwise), so it is judged on the five together.
+    assert min(robust_f) > 0.95, robust_f
+    assert all(r >= p - 0.01 for r, p in zip(robust_f, plain_f, strict=True)), (robust_f, plain_f)
+    assert np.mean(robust_f) > np.mean(plain_f) + 0.1, (robust_f, plain_f)

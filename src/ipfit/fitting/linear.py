@@ -450,7 +450,10 @@ def _fit_problem(method: str, problem: _Problem, params: dict, **extra_info) -> 
         # The sign only needs the normals' overall agreement: every k-th point of a big cloud
         # (all points up to _SIGN_POINTS) keeps the gradients' memory bounded.
         every = slice(None, None, max(1, len(problem.u) // _SIGN_POINTS))
-        return poly.canonical(problem.normalization.invert(problem.u[every]), problem.normals[every])
+        normals = problem.normals[every]
+        if problem.weights is not None:  # the agreement of the points that count, as much as they count
+            normals = normals * problem.weights[every, None]
+        return poly.canonical(problem.normalization.invert(problem.u[every]), normals)
     return poly.canonical()
 
 

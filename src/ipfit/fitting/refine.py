@@ -457,7 +457,9 @@ def _refine(cloud: Cloud, degree, settings: MethodOptions, delta, given_starts, 
 
     kept = _best_distinct(pool, pool_fun, settings.n_solutions)
     template = ImplicitPolynomial(basis.exponents(dim, degree), pool[kept[0]], norm, method=method)
-    solutions = _solutions(template, pool, pool_fun, kept, obj64, pts, unit_normals, starts)
+    # the sign from the agreement of the points that count, as much as they count
+    agreeing = unit_normals if cloud.weights is None else unit_normals * cloud.weights[:, None]
+    solutions = _solutions(template, pool, pool_fun, kept, obj64, pts, agreeing, starts)
     best = solutions[0]
     fun = float(obj64(best.coefficients)[0])
     if len(starts) and best.measures["distance"] >= starts.distances[0] * (1 - _SAME_DISTANCE):
