@@ -57,7 +57,15 @@ from numpy.typing import ArrayLike, NDArray
 
 from .. import basis
 from .._utils.threads import default_threads
-from .._utils.validation import as_normals, as_points, as_weights, check_degree, check_nonnegative, check_positive, error
+from .._utils.validation import (
+    as_normals,
+    as_points,
+    as_weights,
+    check_degree,
+    check_nonnegative,
+    check_positive,
+    error,
+)
 from ..polynomial import ImplicitPolynomial
 from .farfield import FarFieldTerm, fused_rows
 
