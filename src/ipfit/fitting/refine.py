@@ -20,9 +20,11 @@ Design notes:
   best of them.
 * A cloud with ``weights`` (the inliers' weights when :func:`ipfit.fit_adaptive` found outliers)
   is fitted robustly: the start fits are reweighted by their own distances (IRLS, see
-  :mod:`~ipfit.fitting.starts`), and the objective of the search and of the polish weights each
-  point and truncates its Taubin term at a few noise scales (:func:`robust_scale`), so that a
-  stray point left in stops pulling the zero set. Without weights nothing of this runs.
+  :mod:`~ipfit.fitting.starts`), the objective of the search and of the polish weights each
+  point and truncates its Taubin term at a few noise scales, at least 10 point spacings
+  (:func:`robust_scale`, :data:`CAP_SCALES`), so that a stray point left in stops pulling the
+  zero set, and the far-field term is judged robustly (:mod:`~ipfit.fitting.farfield`). Without
+  weights nothing of this runs.
 """
 
 from __future__ import annotations
