@@ -31,7 +31,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ._utils.foreign import foreign_parts
-from ._utils.validation import as_faces, as_matching, as_normals, as_points, check_int, error
+from ._utils.validation import as_faces, as_matching, as_normals, as_points, as_weights, check_int, error
 
 __all__ = ["Cloud", "as_cloud"]
 
@@ -77,6 +77,13 @@ class Cloud:
         Where the normals come from: the file (or, for data built in code, the caller), the
         mesh's faces (area-weighted), the order of a contour; None when there are none.
         Default "file" when there are normals.
+    weights : (N,) array in [0, 1], optional
+        How much each point counts in a fit (a read-only float64 copy): the linear fits scale
+        a point's rows by its square root, the objective weights its terms (a weighted mean),
+        and a cloud with weights is fitted robustly (:func:`ipfit.refine`). None (default):
+        every point counts fully, and the fits are exactly those of a cloud without weights.
+        :func:`ipfit.fit_adaptive` gives the inliers' weights of
+        :func:`ipfit.robust.score_outliers` when it found outliers.
 
     Attributes
     ----------
@@ -97,6 +104,7 @@ class Cloud:
     source: os.PathLike | str | None = None
     n_file: int | None = None
     normals_source: str | None = None
+    weights: NDArray[np.float64] | None = None
     if TYPE_CHECKING:
         # The store (_start_store) is set with object.__setattr__, outside the dataclass fields;
         # declared for the type checker only.
@@ -109,11 +117,13 @@ class Cloud:
         faces = None if self.faces is None else as_faces(self.faces, len(points))
         n_file = len(points) if self.n_file is None else check_int(self.n_file, "n_file", minimum=len(points))
         source = None if normals is None else (self.normals_source or "file")
+        weights = None if self.weights is None else as_weights(self.weights, len(points))
         # frozen: the checked values replace the given ones once, here
         for key, value in (("points", _frozen_copy(points)),
                            ("normals", None if normals is None else _frozen_copy(normals)),
                            ("faces", None if faces is None else _frozen_copy(faces)), ("name", str(self.name)),
-                           ("n_file", n_file), ("normals_source", source)):
+                           ("n_file", n_file), ("normals_source", source),
+                           ("weights", None if weights is None else _frozen_copy(weights))):
             object.__setattr__(self, key, value)
         self._start_store()
 
@@ -136,15 +146,17 @@ class Cloud:
 
     @classmethod
     def _checked(cls, points: NDArray[np.float64], unit_normals: NDArray[np.float64] | None,
-                 faces: NDArray[np.int64] | None = None) -> Cloud:
+                 faces: NDArray[np.int64] | None = None, weights: NDArray[np.float64] | None = None) -> Cloud:
         """A cloud of arrays the caller has already checked (:func:`as_cloud`), whose normals are
-        the unit normals computed there: nothing is checked or normalised again."""
+        the unit normals computed there, and whose weights (float64 in [0, 1], or None) are
+        checked too: nothing is checked or normalised again."""
         cloud = cls.__new__(cls)
         normals = None if unit_normals is None else _read_only(unit_normals)
         for key, value in (("points", _read_only(points)), ("normals", normals),
                            ("faces", None if faces is None else _read_only(faces)), ("name", "points"),
                            ("source", None), ("n_file", len(points)),
-                           ("normals_source", None if normals is None else "file")):
+                           ("normals_source", None if normals is None else "file"),
+                           ("weights", None if weights is None else _read_only(weights))):
             object.__setattr__(cloud, key, value)
         cloud._start_store()
         # Normalising unit normals again could change their last bits: they are kept as they are.
@@ -224,15 +236,18 @@ class Cloud:
             extras.append(f"{len(self.faces):,} faces")
         if cast(int, self.n_file) > len(self):  # __post_init__ replaced None with len(points)
             extras.append(f"{len(self):,} of {self.n_file:,} kept")
+        if self.weights is not None:
+            extras.append("weighted")
         return f"Cloud({self.name!r}: {len(self):,} {self.dim}D points, {', '.join(extras)})"
 
 
-def as_cloud(points, normals=None, *, faces=None, name: str = "points", dims=(2, 3), min_points: int = 1,
-             required_by: str | None = None) -> Cloud:
-    """``points`` (and ``normals``, ``faces``) as a :class:`Cloud`: a given cloud as it is (its
-    own normals and faces, and its store of derived data), arrays checked once (as
-    :func:`~ipfit._utils.validation.as_points`, :func:`~ipfit._utils.validation.as_normals` with
-    ``required_by``, :func:`~ipfit._utils.validation.as_faces`) into a transient cloud.
+def as_cloud(points, normals=None, *, faces=None, weights=None, name: str = "points", dims=(2, 3),
+             min_points: int = 1, required_by: str | None = None) -> Cloud:
+    """``points`` (and ``normals``, ``faces``, ``weights``) as a :class:`Cloud`: a given cloud as
+    it is (its own normals, faces and weights, and its store of derived data), arrays checked
+    once (as :func:`~ipfit._utils.validation.as_points`, :func:`~ipfit._utils.validation.as_normals`
+    with ``required_by``, :func:`~ipfit._utils.validation.as_faces`,
+    :func:`~ipfit._utils.validation.as_weights`) into a transient cloud.
 
     The public functions that take points call this once at their entry and pass the cloud
     down; below it nothing is checked again. A trimesh, Open3D or PyVista object, or a
@@ -245,7 +260,7 @@ def as_cloud(points, normals=None, *, faces=None, name: str = "points", dims=(2,
         normals = parts.normals if normals is None else normals
         faces = parts.faces if faces is None else faces
     if isinstance(points, Cloud):
-        for given, what in ((normals, "normals"), (faces, "faces")):
+        for given, what in ((normals, "normals"), (faces, "faces"), (weights, "weights")):
             if given is not None:
                 raise error(what, f"None when the points are a Cloud (its {what} are used)", type(given).__name__,
                             f"Build the Cloud with these {what}, or pass arrays.")
@@ -258,4 +273,5 @@ def as_cloud(points, normals=None, *, faces=None, name: str = "points", dims=(2,
         return points
     pts = as_points(points, name, dims=dims, min_points=min_points)
     unit = as_normals(normals, pts, required_by=required_by)
-    return Cloud._checked(pts, unit, None if faces is None else as_faces(faces, len(pts), pts.shape[1]))
+    return Cloud._checked(pts, unit, None if faces is None else as_faces(faces, len(pts), pts.shape[1]),
+                          None if weights is None else as_weights(weights, len(pts)))

@@ -25,6 +25,7 @@ __all__ = [
     "as_matching",
     "check_real_dtype",
     "as_faces",
+    "as_weights",
     "check_degree",
     "check_real",
     "check_positive",
@@ -194,6 +195,25 @@ def as_matching(values: ArrayLike, points: NDArray[np.float64], name: str = "nor
     if arr.shape != points.shape:
         raise error(name, f"shape {points.shape} to match the points", f"shape {arr.shape}",
                     "Pass one normal per point.")
+    return arr
+
+
+def as_weights(weights: ArrayLike, n_points: int, name: str = "weights") -> NDArray[np.float64]:
+    """Per-point weights as a float64 (N,) array in [0, 1], not all zero: one weight per point."""
+    try:
+        arr = np.asarray(weights)
+    except (TypeError, ValueError):
+        raise error(name, f"an ({n_points},) array of numbers in [0, 1]", _describe(weights)) from None
+    if arr.ndim != 1 or len(arr) != n_points or (arr.size and arr.dtype.kind not in "iuf"):
+        raise error(name, f"an ({n_points},) array of numbers in [0, 1], one per point", _describe(arr))
+    arr = arr.astype(np.float64)
+    if not np.isfinite(arr).all():
+        raise error(name, "numbers in [0, 1]", "NaN or inf")
+    if arr.size and (arr.min() < 0.0 or arr.max() > 1.0):
+        raise error(name, "numbers in [0, 1]", f"values in [{arr.min():g}, {arr.max():g}]",
+                    "Scale the weights so that the largest is 1.")
+    if arr.size and not arr.any():
+        raise error(name, "at least one positive weight", "all zeros", "Weight the points that should be fitted.")
     return arr
 
 

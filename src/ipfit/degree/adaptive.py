@@ -141,7 +141,7 @@ class AdaptiveResult(Result):
     options : the search settings used by a refinement method (None for a linear fit).
     outliers : the :class:`~ipfit.robust.OutlierScore` of the input points (per-point weights,
         the inlier mask over every point given, the noise scale) when ``outliers`` was not
-        'none'; the fit is of the inliers.
+        'none'; the fit is of the inliers, weighted by their weights when outliers were found.
     """
 
     polynomial: ImplicitPolynomial
@@ -216,9 +216,10 @@ FitFunction = Callable[..., ImplicitPolynomial]
 class _Fitter:
     """Fits one degree with the chosen method; warm-starts each degree from the previous one."""
 
-    def __init__(self, method, options: SearchOptions | None, delta: float, rng, progress) -> None:
+    def __init__(self, method, options: SearchOptions | None, delta: float, rng, progress,
+                 noise_scale: float | None = None) -> None:
         self.method, self.delta, self.rng, self.progress = method, delta, rng, progress
-        self.options = options
+        self.options, self.noise_scale = options, noise_scale
         self.previous: ImplicitPolynomial | None = None
 
     def __call__(self, cloud: Cloud, normals, degree, options: SearchOptions | None = None, extra_starts=(),
@@ -241,7 +242,7 @@ class _Fitter:
         if options.warm_start and self.previous is not None and self.previous.degree < degree:
             starts.append(_embed(self.previous, degree))
         result = refine(cloud, None, degree, method=method or self.method, options=options, delta=self.delta,
-                        starts=starts or None, keep_clear=keep_clear, rng=self.rng,
+                        starts=starts or None, keep_clear=keep_clear, noise_scale=self.noise_scale, rng=self.rng,
                         callback=report if self.progress is not None else None)
         return (result.polynomial, tuple(result.solutions), result.nit, result.nfev, result.success,
                 result.message, result.fun)
@@ -274,10 +275,10 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
     Parameters
     ----------
     points : (N, 2) or (N, 3) array, or a :class:`~ipfit.Cloud` (e.g. :func:`ipfit.load`'s): then
-        its normals (estimated when it has none) and faces are used; or a ``trimesh.Trimesh`` or
-        ``PointCloud``, an Open3D ``PointCloud`` or ``TriangleMesh``, a PyVista ``PolyData`` or
-        a pandas DataFrame (x, y[, z] columns): its points, and its normals and faces when it has
-        them (:mod:`ipfit._utils.foreign`).
+        its normals (estimated when it has none), faces and weights (a robust fit) are used; or
+        a ``trimesh.Trimesh`` or ``PointCloud``, an Open3D ``PointCloud`` or ``TriangleMesh``, a
+        PyVista ``PolyData`` or a pandas DataFrame (x, y[, z] columns): its points, and its
+        normals and faces when it has them (:mod:`ipfit._utils.foreign`).
     normals : (N, dim) array, or None to estimate them (:func:`ipfit.estimate_normals`) or to take
         a geometry object's; None with a cloud.
     method : a fixed-degree method: a refinement ('de+polish' (default), 'pso+polish', 'de',
@@ -313,7 +314,10 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
         (:func:`ipfit.robust.score_outliers`: points far sparser than the shape's samples, or off
         their neighbourhood's line or plane beyond the noise); on clean data it finds none and
         the fit is exactly the fit of every point. A share marks that many of the most outlying
-        points. Normals are estimated on the inliers only. A mesh's vertices are its surface:
+        points. Normals are estimated on the inliers only. When outliers were found, the inliers
+        are fitted with their weights (times a given cloud's own), robustly (:func:`ipfit.refine`
+        on a weighted cloud: reweighted start fits, a loss truncated at a few noise scales), so
+        that strays the score missed pull little. A mesh's vertices are its surface:
         'auto' treats none as outliers there, and a share keeps the faces whose vertices are
         all inliers. The result records the decision (:attr:`AdaptiveResult.outliers`).
     rng : seed or Generator (SPEC 7), passed to the metaheuristics.
@@ -367,20 +371,24 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
     # (uneven triangles would read as density outliers); a forced share still applies.
     scored = None if outliers == "none" or (outliers == "auto" and faces is not None) else \
         score_outliers(pts, outliers=outliers)
+    # A weighted fit (robust, see refine) when outliers were found, or the given cloud has weights.
+    weights = None if given is None else given.weights
+    noise = None if scored is None else scored.noise_scale
     if scored is not None and not scored.inliers.all():
         keep = scored.inliers
         pts, known, faces = pts[keep], None if known is None else known[keep], _kept_faces(faces, keep)
+        weights = scored.weights[keep] * (1.0 if weights is None else weights[keep])
     top = _top_degree(len(pts), dim, min_degree, max_degree, rule)
     unit = estimate_normals(pts) if known is None else known
     # One cloud for the whole fit: it keeps what every degree and repair round reuses (far-field
     # samples, start fits' R factors, spacing, the data's side of the quality measurements). Its
     # normals are ``unit`` normalised once more, as refine and the linear fits have always done
     # with the normals they are given: that rounding is part of every fit's coefficients.
-    cloud = Cloud._checked(pts, as_normals(unit, pts), faces)
+    cloud = Cloud._checked(pts, as_normals(unit, pts), faces, weights)
     measured = rule.measured
     if measured and ordered_contour is None:
         ordered_contour = dim == 2 and looks_like_contour(pts)
-    fitter = _Fitter(method, options if method in REFINE_METHODS else None, delta, generator, progress)
+    fitter = _Fitter(method, options if method in REFINE_METHODS else None, delta, generator, progress, noise)
     degrees = list(range(min_degree, top + 1, 2)) if top > min_degree else [min_degree]
     start = time.perf_counter()
     results: list[DegreeResult] = []

@@ -17,6 +17,12 @@ carry their signed distance to the data (sign from the nearest point's normal):
   (``Objective(population, bound)``): 15-40 % of them, so the term takes 8-25 % of the
   search time on the bundled datasets (``benchmarks/bench_farfield.py``,
   ``docs/farfield-cost.md``).
+
+On a cloud with weights (strays left in, see :func:`ipfit.refine`) the far field is judged from
+the points of weight at least :data:`CONFIDENT_WEIGHT` only (:func:`confident_mask`), and a
+sample's side is the majority of its :data:`VOTERS` nearest points' (``voters``): a stray
+left in would otherwise clear the space around it of samples and, worse, give the samples
+nearest to it its own random side of the shape, which the term then holds the zero set to.
 """
 
 from __future__ import annotations
@@ -30,7 +36,8 @@ from .._utils.validation import as_matching, as_points, check_nonnegative, check
 from ..cloud import Cloud, as_cloud
 
 __all__ = ["far_field_samples", "term_samples", "term_sample_count", "fused_rows", "FarFieldTerm", "DEFAULT_MARGIN",
-           "DEFAULT_CLEARANCE", "DEFAULT_RATIO", "DEFAULT_TERM_WEIGHT"]
+           "DEFAULT_CLEARANCE", "DEFAULT_RATIO", "DEFAULT_TERM_WEIGHT", "CONFIDENT_WEIGHT", "confident_mask",
+           "confident_cloud"]
 
 #: The sampled box is the data's box grown by this × its longest side: a little more than the
 #: box in which zero sets are extracted and judged (0.25), so every part of that box is seen.
@@ -60,11 +67,44 @@ _TINY = float(np.finfo(np.float64).tiny)
 #: distance of good fits is 0.005-0.2): 0.1 removed every spurious component of DE + polish
 #: on the bundled contours at degrees 4-8, where 0.01 left some.
 DEFAULT_TERM_WEIGHT = 0.1
+#: The far field of a weighted cloud is judged from its points of at least this weight: an
+#: outlier score below 0.72 of the threshold (:func:`ipfit.robust.score_outliers`' weights
+#: 1/(1 + score⁴)), well inside it, where the shape's samples lie; the strays a score misses sit
+#: near its threshold (weights 0.5-0.9).
+CONFIDENT_WEIGHT = 0.9
+# ... unless fewer than this share of the points reach it: then the weights say little, all count.
+_CONFIDENT_SHARE = 0.5
+#: Nearest points whose normals vote on a sample's side on a weighted cloud: a stray among them
+#: is outvoted by the shape's samples around it (an odd number: no ties).
+VOTERS = 7
+
+
+def confident_mask(weights: NDArray[np.float64] | None, n_points: int) -> NDArray[np.bool_] | slice:
+    """The points the far field is judged from: every point (``slice(None)``) without weights,
+    else those of weight >= :data:`CONFIDENT_WEIGHT` (every point when under half of them are)."""
+    if weights is None:
+        return slice(None)
+    mask = weights >= CONFIDENT_WEIGHT
+    return mask if mask.sum() >= _CONFIDENT_SHARE * n_points else slice(None)
+
+
+def confident_cloud(cloud: Cloud) -> Cloud:
+    """``cloud`` itself without weights, else the cloud of its :func:`confident_mask` points (kept
+    by ``cloud``, so that the far-field samples it keeps are computed once)."""
+    if cloud.weights is None:
+        return cloud
+
+    def compute() -> Cloud:
+        keep = confident_mask(cloud.weights, len(cloud))
+        return Cloud._checked(cloud.points[keep], cloud.oriented[keep])
+
+    return cloud.derived("confident_cloud", None, compute)
 
 
 def far_field_samples(u: NDArray[np.float64] | Cloud, normals: NDArray[np.float64] | None = None, *, c: float = 0.05,
                       margin: float = DEFAULT_MARGIN, per_axis: int | None = None,
-                      clearance: float = DEFAULT_CLEARANCE) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+                      clearance: float = DEFAULT_CLEARANCE,
+                      voters: int = 1) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Grid samples of the data's box (plus ``margin``) away from the data, with signed distances.
 
     The grid is regular with the same step on every axis (``per_axis`` nodes along the
@@ -76,6 +116,8 @@ def far_field_samples(u: NDArray[np.float64] | Cloud, normals: NDArray[np.float6
         points and unit normals).
     normals : (N, dim) unit normals at ``u``; None with a cloud.
     c : the 3L offset; samples within ``clearance · c`` of the data are dropped.
+    voters : a sample's side is the majority of the sides of its ``voters`` nearest points
+        (the side of a point: the sign of (sample − point) · its normal); 1: the nearest's.
 
     Returns
     -------
@@ -100,11 +142,18 @@ def far_field_samples(u: NDArray[np.float64] | Cloud, normals: NDArray[np.float6
     step = float((hi - lo).max()) / ((per_axis or (40 if dim == 2 else 16)) - 1)
     axes = [np.arange(a, b + 0.5 * step, step) for a, b in zip(lo, hi, strict=True)]
     grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, dim)
-    dist, nearest = cKDTree(u).query(grid, workers=-1)
-    keep = dist > clearance * c
-    grid, dist, nearest = grid[keep], dist[keep], nearest[keep]
-    side = np.einsum("ij,ij->i", grid - u[nearest], normals[nearest])
-    return grid, np.where(side < 0, -dist, dist)
+    if voters == 1:
+        dist, nearest = cKDTree(u).query(grid, workers=-1)
+        keep = dist > clearance * c
+        grid, dist, nearest = grid[keep], dist[keep], nearest[keep]
+        side = np.einsum("ij,ij->i", grid - u[nearest], normals[nearest])
+        return grid, np.where(side < 0, -dist, dist)
+    dists, near = cKDTree(u).query(grid, k=min(int(voters), len(u)), workers=-1)
+    dists, near = dists.reshape(len(grid), -1), near.reshape(len(grid), -1)
+    keep = dists[:, 0] > clearance * c
+    grid, dist, near = grid[keep], dists[keep, 0], near[keep]
+    votes = np.sign(np.einsum("ikj,ikj->ik", grid[:, None, :] - u[near], normals[near])).sum(axis=1)
+    return grid, np.where(votes < 0, -dist, dist)
 
 
 def _points_and_normals(u, normals, required_by: str) -> tuple[NDArray[np.float64], NDArray[np.float64]]:

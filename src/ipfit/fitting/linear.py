@@ -11,7 +11,10 @@ never through the normal equations, whose condition number is the square of the 
 
 Every fit takes arrays or a :class:`~ipfit.Cloud` as its points (then ``normals`` is None: the
 cloud's own are used). A cloud keeps the R factors of the big row blocks, so the fits on one
-cloud (the dozen start fits of a search) factor each block once.
+cloud (the dozen start fits of a search) factor each block once. A cloud with ``weights`` is
+fitted by weighted least squares: each point's rows (its level rows, its offset or gradient
+rows) are scaled by the square root of its weight, so that a weight of 2 counts as the point
+twice, a weight of 0 as no point; without weights the arithmetic is the unweighted one.
 """
 
 from __future__ import annotations
@@ -38,7 +41,7 @@ from .._utils.validation import (
 from ..cloud import Cloud, as_cloud
 from ..exceptions import ConditioningWarning
 from ..polynomial import ImplicitPolynomial, Normalization
-from .farfield import far_field_samples
+from .farfield import VOTERS, confident_mask, far_field_samples
 
 __all__ = [
     "fit_lstsq",
@@ -87,6 +90,7 @@ class _Problem:
     normalization: Normalization
     degree: int
     cloud: Cloud | None = None  # the data in user coordinates, which keeps the R factors of its rows
+    weights: NDArray[np.float64] | None = None  # per point, in [0, 1]; None: every point counts fully
 
     @property
     def dim(self) -> int:
@@ -103,6 +107,15 @@ class _Problem:
     @property
     def n_points(self) -> int:
         return len(self.u)
+
+    @property
+    def total_weight(self) -> float:
+        """The data rows' weight per row family: the number of points, or the sum of their weights."""
+        return self.n_points if self.weights is None else float(np.sum(self.weights))
+
+    def root_weights(self, sl: slice) -> NDArray[np.float64] | None:
+        """√w of the points ``sl`` (what their rows are scaled by), or None without weights."""
+        return None if self.weights is None else np.sqrt(self.weights[sl])
 
     def blocks(self, make: Callable[..., Iterable[NDArray]], *args) -> Iterable[NDArray]:
         """The row blocks ``make(problem, *args)`` of the whole cloud (or blocks with the same R)."""
@@ -122,6 +135,8 @@ class _Problem:
     def power_sums(self, top: int) -> NDArray[np.float64]:
         """γ_t = Σ_i ||u_i||^{2t} for t = 0..top (the ridge penalty's weights)."""
         sq = np.einsum("ij,ij->i", self.u, self.u)
+        if self.weights is not None:  # weighted like the rows the penalty is relative to
+            return np.array([np.sum(self.weights * sq**t) for t in range(top + 1)])
         return np.array([np.sum(sq**t) for t in range(top + 1)])
 
 
@@ -135,7 +150,7 @@ def _prepare(points: ArrayLike | Cloud, normals: ArrayLike | None, degree, *, me
                                       or normalization.dim != pts.shape[1]):
         raise error("normalization", f"a {pts.shape[1]}D Normalization", repr(normalization))
     norm = Normalization.from_points(pts) if normalization is None else normalization
-    return _Problem(norm.apply(pts), cloud.unit_normals, norm, degree, cloud)
+    return _Problem(norm.apply(pts), cloud.unit_normals, norm, degree, cloud, cloud.weights)
 
 
 def _triangular_lstsq(r: NDArray, z: NDArray, method: str) -> tuple[NDArray, dict]:
@@ -203,8 +218,16 @@ def _qr_solve(r_aug: NDArray, d: int, method: str, more: Iterable[NDArray] = (),
 
 
 # -- solvers (one signature) -----------------------------------------------------------
+def _weighted(rows: NDArray, root: NDArray | None) -> NDArray:
+    """``rows`` (one per point, or ``k`` per point in k consecutive runs of the points) scaled by
+    the points' √w: weighted least squares as an ordinary one."""
+    if root is None:
+        return rows
+    return rows * np.tile(root, len(rows) // len(root))[:, None]
+
+
 def _lstsq_blocks(problem: _Problem) -> Iterator[NDArray]:
-    return (problem.design(problem.u[sl]) for sl in _point_chunks(problem, 1))
+    return (_weighted(problem.design(problem.u[sl]), problem.root_weights(sl)) for sl in _point_chunks(problem, 1))
 
 
 def _solve_lstsq(problem: _Problem) -> tuple[NDArray, dict]:
@@ -221,14 +244,22 @@ def _taubin_factors(problem: _Problem) -> tuple[NDArray, NDArray, NDArray]:
     gradient rows)."""
     if len(problem.u) * (1 + problem.dim) <= _BLOCK_ROWS:
         m, dm = basis.monomials_and_gradients(problem.u, problem.degree)
-        mean = m[:, 1:].mean(axis=0)
-        return mean, m[:, 1:] - mean, _r_factor(dm[:, :, 1:].reshape(-1, m.shape[1] - 1))
+        root = problem.root_weights(slice(None))
+        if root is None:
+            mean = m[:, 1:].mean(axis=0)
+            return mean, m[:, 1:] - mean, _r_factor(dm[:, :, 1:].reshape(-1, m.shape[1] - 1))
+        # weighted: the constant's optimum centres the columns on their weighted mean
+        mean = problem.weights @ m[:, 1:] / problem.total_weight
+        return mean, _weighted(m[:, 1:] - mean, root), _r_factor(_weighted(dm[:, :, 1:].reshape(-1, m.shape[1] - 1),
+                                                                           root))
 
-    # Big clouds: R of [1 | M₁] holds the column sums in its first row and the centred R below.
+    # Big clouds: R of [1 | M₁] holds the column sums in its first row and the centred R below
+    # (weighted: R of √w [1 | M₁] holds √Σw and the weighted sums over it, the weighted centring below).
     def blocks(gradients: bool):
         for sl in _point_chunks(problem, 1 + problem.dim):
             m, dm = basis.monomials_and_gradients(problem.u[sl], problem.degree)
-            yield dm[:, :, 1:].reshape(-1, m.shape[1] - 1) if gradients else m
+            root = problem.root_weights(sl)
+            yield _weighted(dm[:, :, 1:].reshape(-1, m.shape[1] - 1) if gradients else m, root)
 
     r1 = _r_of_blocks(blocks(False))
     return r1[0, 1:] / r1[0, 0], r1[1:, 1:], _r_of_blocks(blocks(True))
@@ -258,14 +289,16 @@ def _three_level_blocks(problem: _Problem, c: float) -> Iterator[NDArray]:
         u, n = problem.u[sl], normals[sl]
         stacked = np.concatenate([u, u + c * n, u - c * n])
         targets = np.concatenate([np.zeros(len(u)), np.full(len(u), c), np.full(len(u), -c)])
-        yield _augmented(problem.design(stacked), targets)
+        yield _weighted(_augmented(problem.design(stacked), targets), problem.root_weights(sl))
 
 
-def _far_field_block(problem: _Problem, n_rows: int, far_row_weight: float, c: float) -> tuple[list, int]:
-    """Far-field rows whose total weight is ``far_row_weight`` times the ``n_rows`` data rows' weight."""
+def _far_field_block(problem: _Problem, n_rows: float, far_row_weight: float, c: float) -> tuple[list, int]:
+    """Far-field rows whose total weight is ``far_row_weight`` times the data rows' weight ``n_rows``."""
     if far_row_weight <= 0:
         return [], 0
-    samples, targets = far_field_samples(problem.u, problem.normals, c=c)
+    keep = confident_mask(problem.weights, problem.n_points)  # every point without weights
+    robust = {} if problem.weights is None else {"voters": VOTERS}  # see farfield's notes
+    samples, targets = far_field_samples(problem.u[keep], cast(NDArray, problem.normals)[keep], c=c, **robust)
     if len(samples) == 0:
         return [], 0
     root = np.sqrt(far_row_weight * n_rows / len(samples))
@@ -273,7 +306,7 @@ def _far_field_block(problem: _Problem, n_rows: int, far_row_weight: float, c: f
 
 
 def _solve_3l(problem: _Problem, c: float = DEFAULT_OFFSET, far_row_weight: float = 0.0) -> tuple[NDArray, dict]:
-    far, n_far = _far_field_block(problem, 3 * problem.n_points, far_row_weight, c)
+    far, n_far = _far_field_block(problem, 3 * problem.total_weight, far_row_weight, c)
     d = basis.n_coefficients(problem.dim, problem.degree)
     coef, info = _qr_solve(problem.r_of(_three_level_blocks, c), d, "fit_3l", far)
     info.update(far_row_weight=far_row_weight, far_samples=n_far)
@@ -299,7 +332,7 @@ def _ridge_diagonal(gamma: NDArray, exps: NDArray[np.int64]) -> NDArray[np.float
 
 def _solve_ridge(problem: _Problem, c: float = DEFAULT_OFFSET, kappa: float = DEFAULT_KAPPA,
                  far_row_weight: float = 0.0) -> tuple[NDArray, dict]:
-    far, n_far = _far_field_block(problem, 3 * problem.n_points, far_row_weight, c)
+    far, n_far = _far_field_block(problem, 3 * problem.total_weight, far_row_weight, c)
     penalty = _ridge_diagonal(problem.power_sums(problem.degree), problem.exponents)
     coef, info = _qr_solve(problem.r_of(_three_level_blocks, c), len(penalty), "fit_ridge", far,
                            extra_rows=np.diag(np.sqrt(kappa * penalty)))
@@ -312,12 +345,13 @@ def _gradient_blocks(problem: _Problem) -> Iterator[NDArray]:
     normals = cast(NDArray[np.float64], problem.normals)  # gradient-one requires normals (_prepare checked them)
     for sl in _point_chunks(problem, problem.dim):
         m, dm = basis.monomials_and_gradients(problem.u[sl], problem.degree)
-        yield _augmented(dm.reshape(-1, m.shape[1]), normals[sl].T.ravel())
+        # dm is (dim, n, d): the rows run over the points once per coordinate
+        yield _weighted(_augmented(dm.reshape(-1, m.shape[1]), normals[sl].T.ravel()), problem.root_weights(sl))
 
 
 def _solve_gradient_one(problem: _Problem, mu: float = DEFAULT_MU, far_row_weight: float = 0.0,
                         c: float = DEFAULT_OFFSET) -> tuple[NDArray, dict]:
-    n_rows = problem.n_points * (1 + problem.dim)
+    n_rows = problem.total_weight * (1 + problem.dim)
     far, n_far = _far_field_block(problem, n_rows, far_row_weight, c)
     d = basis.n_coefficients(problem.dim, problem.degree)
     # R of [M | 0; √μ ∂M | √μ n] is R of [R_M | 0; √μ R_∂]: every μ reuses the two big factors.
@@ -416,7 +450,10 @@ def _fit_problem(method: str, problem: _Problem, params: dict, **extra_info) -> 
         # The sign only needs the normals' overall agreement: every k-th point of a big cloud
         # (all points up to _SIGN_POINTS) keeps the gradients' memory bounded.
         every = slice(None, None, max(1, len(problem.u) // _SIGN_POINTS))
-        return poly.canonical(problem.normalization.invert(problem.u[every]), problem.normals[every])
+        normals = problem.normals[every]
+        if problem.weights is not None:  # the agreement of the points that count, as much as they count
+            normals = normals * problem.weights[every, None]
+        return poly.canonical(problem.normalization.invert(problem.u[every]), normals)
     return poly.canonical()
 
 

@@ -32,6 +32,12 @@ Points where ∇f = 0: the cosine is 0 there and the Taubin term is :data:`TAUBI
 f = 0 too, a singular point on the curve). Each point's Taubin term is capped at
 :data:`TAUBIN_CAP` so that the mean stays finite; the cap is far beyond any distance that
 matters for data normalised to unit mean radius.
+
+Robust loss: with per-point ``weights`` w_i the measures are weighted means, Σ w_i t_i / Σ w_i,
+and a smaller ``cap`` truncates the Taubin term, min(|f|/||∇f||, cap): a point farther from
+the zero set than the cap adds a constant, so it stops pulling the zero set towards it (a
+truncated L1 loss; the cosine term stays, bounded by 2δ per point). Weights all 1 and the
+default cap are the paper's measures, to the bit.
 """
 
 from __future__ import annotations
@@ -51,7 +57,15 @@ from numpy.typing import ArrayLike, NDArray
 
 from .. import basis
 from .._utils.threads import default_threads
-from .._utils.validation import as_normals, as_points, check_degree, check_nonnegative, error
+from .._utils.validation import (
+    as_normals,
+    as_points,
+    as_weights,
+    check_degree,
+    check_nonnegative,
+    check_positive,
+    error,
+)
 from ..polynomial import ImplicitPolynomial
 from .farfield import FarFieldTerm, fused_rows
 
@@ -218,6 +232,14 @@ class Objective:
         :mod:`threadpoolctl` is installed and an evaluation spans several blocks and about a
         millisecond of work. Results are reproducible for a given value (fixed partition,
         fixed summation order).
+    weights : (N,) array in [0, 1], optional
+        Per-point weights: the dissimilarity and smoothness become weighted means
+        Σ w_i t_i / Σ w_i (in :meth:`__call__`, :meth:`measures` and :meth:`value_and_grad`).
+        None (default): every point counts fully, the paper's means.
+    cap : float, default :data:`TAUBIN_CAP`
+        Truncation of each point's Taubin term |f|/||∇f|| (evaluation coordinates): a point
+        beyond it adds ``cap`` whatever the fit does (a robust loss). The default truncates
+        nothing that matters (the paper's measures).
 
     Examples
     --------
@@ -231,7 +253,8 @@ class Objective:
     """
 
     def __init__(self, u: ArrayLike, normals: ArrayLike, degree: int, delta: float = DEFAULT_DELTA, *,
-                 dtype=np.float64, terms: Sequence[ObjectiveTerm] = (), threads: int | None = None) -> None:
+                 dtype=np.float64, terms: Sequence[ObjectiveTerm] = (), threads: int | None = None,
+                 weights: ArrayLike | None = None, cap: float = TAUBIN_CAP) -> None:
         pts = as_points(u, "points")
         self.normals64 = as_normals(normals, pts, required_by="the smoothness measure")
         self.degree = check_degree(degree)
@@ -247,6 +270,14 @@ class Objective:
             if not isinstance(term, ObjectiveTerm):
                 raise error("terms", "objects with __call__(population) and value_and_grad(a)",
                             type(term).__name__)
+        self.cap = check_positive(cap, "cap")
+        if self.cap > TAUBIN_CAP:
+            raise error("cap", f"a number in (0, {TAUBIN_CAP:g}]", f"{self.cap:g}")
+        self.weights = None if weights is None else as_weights(weights, len(pts))
+        # Kernels take an array either way; ones leave every sum as it is (x · 1.0 is exact), and
+        # their sum is N exactly, so unweighted measures are the paper's to the bit.
+        self._weights = np.ones(len(pts)) if self.weights is None else self.weights
+        self._total = float(len(pts)) if self.weights is None else float(np.sum(self.weights))
         self.u = pts
         self.dim = pts.shape[1]
         self.n_points = pts.shape[0]
@@ -304,7 +335,7 @@ class Objective:
         return int(min(max(_BLOCK_BYTES // max(per_row, 1), _MIN_ROWS), _MAX_ROWS))
 
     def sums(self, population: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """Per-member Σ_i Taubin term and Σ_i cosine over the points (the fused kernel)."""
+        """Per-member Σ_i w_i Taubin term and Σ_i w_i cosine over the points (the fused kernel)."""
         sums = self._sums(self._population(population))
         return sums[0], sums[1]
 
@@ -362,7 +393,8 @@ class Objective:
             if is_far:
                 reduce_far_field(values[:n], grads[:n], far[1][lo:hi], far[2][lo:hi], _TINY, sums[2])
             else:
-                reduce_population(values[:n], grads[:n], self._normals[lo:hi], _TINY, TAUBIN_CAP, sums[0], sums[1])
+                reduce_population(values[:n], grads[:n], self._normals[lo:hi], self._weights[lo:hi], _TINY, self.cap,
+                                  sums[0], sums[1])
         return sums
 
     def measures(self, population: ArrayLike) -> Measures:
@@ -371,8 +403,8 @@ class Objective:
         return self._measures(sums)
 
     def _measures(self, sums: NDArray[np.float64]) -> Measures:
-        dissim = sums[0] / self.n_points
-        smooth = sums[1] / self.n_points
+        dissim = sums[0] / self._total
+        smooth = sums[1] / self._total
         return Measures(dissim, smooth, dissim + self.delta * (1.0 - smooth), self.delta)
 
     def __call__(self, population: ArrayLike, bound: ArrayLike | None = None) -> NDArray[np.float64]:
@@ -446,12 +478,12 @@ class Objective:
         from ._objective_kernels import member_pass
 
         source, factor = basis.derivative_gather(self.dim, self.degree)
-        n = self.n_points
+        n = self._total
         sums = np.zeros(3)
         grad = np.zeros(self.n_coefficients)
-        for rows, normals, n_data in self._member_blocks():
-            sums += member_pass(rows, a, source, factor, normals, self._far64[1], self._far64[2], n_data, 1.0 / n,
-                                self.delta, _TINY, TAUBIN_CAP, _GRAD_FLOOR, grad)
+        for rows, normals, weights, n_data in self._member_blocks():
+            sums += member_pass(rows, a, source, factor, normals, weights, self._far64[1], self._far64[2], n_data,
+                                1.0 / n, self.delta, _TINY, self.cap, TAUBIN_CAP, _GRAD_FLOOR, grad)
         value = sums[0] / n + self.delta * (1.0 - sums[1] / n) + sums[2]
         for term in self._extra:
             tv, tg = term.value_and_grad(a)
@@ -460,19 +492,19 @@ class Objective:
         return float(value), grad
 
     def _member_blocks(self):
-        """(float64 rows, their normals, how many are data rows) for the single-member pass:
+        """(float64 rows, their normals and weights, how many are data rows) for the single-member pass:
         the data then the far-field samples, stacked into one block (kept) when they fit in
         one, so that a polish step is one compiled call; bigger clouds in blocks of rows."""
         far = self._far64[0]
         if self.n_points + len(far) <= _SINGLE_ROWS:
             if self._member_rows is None:
                 self._member_rows = np.vstack([self._design(0, self.n_points, np.float64), far])
-            yield self._member_rows, self.normals64, self.n_points
+            yield self._member_rows, self.normals64, self._weights, self.n_points
             return
         for lo, hi in basis.point_blocks(self.n_points, _SINGLE_ROWS):
-            yield self._design(lo, hi, np.float64), self.normals64[lo:hi], hi - lo
+            yield self._design(lo, hi, np.float64), self.normals64[lo:hi], self._weights[lo:hi], hi - lo
         if len(far):
-            yield far, self.normals64[:0], 0
+            yield far, self.normals64[:0], self._weights[:0], 0
 
 
 def measures(poly_or_population: ImplicitPolynomial | ArrayLike, points: ArrayLike, normals: ArrayLike,
