@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from ._common import (
+    LazyChoices,
     Outputs,
     beside,
     cli_names,
@@ -78,9 +79,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def add_fit_options(parser: argparse.ArgumentParser) -> None:
-    """The fit options shared by ``ipfit fit`` and ``ipfit batch`` (read back by :func:`search_settings`)."""
-    from ..degree.adaptive import fixed_degree_methods
-    from ..degree.rules import RULES
+    """The fit options shared by ``ipfit fit`` and ``ipfit batch`` (read back by :func:`search_settings`).
+
+    The method and rule names are listed on first use (:class:`LazyChoices`): their registries
+    import the whole fitting stack, which a batch with nothing to do never needs.
+    """
     from ..fitting.options import (
         DEFAULT_DELTA,
         DEFAULT_EPSILON,
@@ -97,9 +100,9 @@ def add_fit_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--max-degree", type=positive_int, metavar="G",
                         help="largest degree the adaptive loop tries (default: 14 in 2D and 8 in 3D with the capture "
                         "rule, within 2 points per coefficient; 10 in 2D and 8 in 3D with the other rules)")
-    parser.add_argument("--method", default=None, choices=fixed_degree_methods(), metavar="METHOD",
-                        help="fixed-degree method: " + ", ".join(fixed_degree_methods())
-                        + f" (default {DEFAULT_METHOD}; 'de' and 'pso' are the paper's metaheuristics)")
+    parser.add_argument("--method", default=None, choices=LazyChoices(_method_names), metavar="METHOD",
+                        help="fixed-degree method: %(choices)s"
+                        f" (default {DEFAULT_METHOD}; 'de' and 'pso' are the paper's metaheuristics)")
     parser.add_argument("--epsilon", type=finite_float, default=DEFAULT_EPSILON,
                         help=f"stop when smoothness improves by no more than this (default {DEFAULT_EPSILON})")
     parser.add_argument("--delta", type=nonnegative_float, default=DEFAULT_DELTA,
@@ -108,7 +111,7 @@ def add_fit_options(parser: argparse.ArgumentParser) -> None:
                         default=None, metavar="W",
                         help="weight of the far-field term that keeps the zero set from growing spurious sheets "
                         f"(default {RECOMMENDED.far_term_weight:g}; 0 is the paper's objective)")
-    parser.add_argument("--rule", choices=list(RULES), default=None,
+    parser.add_argument("--rule", choices=LazyChoices(_rule_names), default=None, metavar="RULE",
                         help="degree rule: 'capture' (default) goes on while a degree gains substantially, stops "
                         "once the shape is captured and takes the lowest clean degree within 0.01 of the best "
                         "F-score; 'geometric' is Algorithm 1 restricted to clean degrees; 'paper' is Algorithm 1 "
@@ -127,6 +130,22 @@ def add_fit_options(parser: argparse.ArgumentParser) -> None:
                         help="metaheuristic population (default 4 × the number of coefficients)")
     parser.add_argument("--seed", type=nonnegative_int, default=0,
                         help="random seed for a reproducible run (default 0)")
+
+
+def _method_names() -> tuple[str, ...]:
+    """``degree.adaptive.fixed_degree_methods()`` from the registries themselves: importing
+    degree.adaptive (robust, scipy.stats, ...) would cost a batch with nothing to do a second
+    (tests/test_newuser_messages.py checks the two agree)."""
+    from ..fitting.linear import LINEAR_METHODS
+    from ..fitting.refine import REFINE_METHODS
+
+    return tuple(LINEAR_METHODS) + REFINE_METHODS
+
+
+def _rule_names() -> list[str]:
+    from ..degree.rules import RULES
+
+    return list(RULES)
 
 
 def outlier_setting(text: str) -> str | float:
