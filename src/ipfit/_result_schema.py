@@ -473,7 +473,11 @@ def read_result_json(path: str | os.PathLike) -> dict:
         raise ReadError(f"{path}: no such file. Check the path.") from None
     except IsADirectoryError:
         raise ReadError(f"{path}: is a folder, not a result file. Pass the .json written by ipfit fit.") from None
-    except (OSError, UnicodeDecodeError) as exc:
+    except UnicodeDecodeError as exc:  # an image or a binary point file, given where a result belongs
+        raise ReadError(f"{path}: not a result JSON: it is not text (byte {exc.start} is not UTF-8). Pass the .json "
+                        f"written by ipfit fit (`ipfit fit {path}` would write {path.with_suffix('.json').name}).") \
+            from None
+    except OSError as exc:
         raise ReadError(f"{path}: cannot be read ({exc.__class__.__name__}). Check the file.") from None
     return parse_result_text(text, str(path), ReadError)
 

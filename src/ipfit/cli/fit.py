@@ -206,6 +206,18 @@ def _parse_degree(text: str, dim: int) -> int | None:
     return value
 
 
+def _warn_high_degree(option: str, degree: int | None, dim: int) -> None:
+    """One stderr line when a degree goes beyond the highest the capture rule tries by default
+    (14 in 2D, 8 in 3D, the README's "last degree"): ipfit accepts up to its hard limit
+    (``basis.MAX_DEGREE``), but the monomial basis conditions badly and each degree costs more."""
+    from ..degree.rules import CAPTURE_MAX_DEGREE
+
+    top = CAPTURE_MAX_DEGREE[dim]
+    if degree is not None and degree > top:
+        print(f"ipfit fit: warning: {option} {degree} is above {top}, the highest degree ipfit tries and is tested "
+              f"at in {dim}D: expect slow fits, poor conditioning and spurious pieces.", file=sys.stderr)
+
+
 def _report_kept(data, max_points: int | None) -> None:
     """One stderr line when --max-points dropped points: the loader only records the counts."""
     if max_points is None or len(data) >= data.n_file:
@@ -229,6 +241,9 @@ def run(args: argparse.Namespace) -> int:
     points, normals = data.points, data.normals
     dim = points.shape[1]
     degree = _parse_degree(args.degree, dim)
+    _warn_high_degree("--degree", degree, dim)
+    if degree is None:
+        _warn_high_degree("--max-degree", args.max_degree, dim)
     if degree is not None and basis.n_coefficients(dim, degree) > len(points):
         raise InvalidInputError(f"--degree: degree {degree} needs at least {basis.n_coefficients(dim, degree)} "
                                 f"points, the input has {len(points)}. Lower the degree.")
@@ -242,6 +257,11 @@ def run(args: argparse.Namespace) -> int:
     source = "file"
     if normals is None or args.normals == "estimate":
         source = "estimated"
+        if not args.quiet:  # on a big noisy cloud this takes a while: say what is happening
+            after = "" if outliers == "none" else ", after setting its outliers aside"
+            print(f"ipfit fit: {args.input} has no normals: estimating them from its {len(points):,} points{after}"
+                  if normals is None else f"ipfit fit: estimating normals from the {len(points):,} points{after} "
+                  "(--normals estimate: the file's are not used)", file=sys.stderr)
         if outliers == "none":
             from ..normals import estimate_normals
 
@@ -278,21 +298,34 @@ def run(args: argparse.Namespace) -> int:
             if entry.reason.startswith("rejected"):
                 print(f"degree {entry.degree} {entry.reason}")
         if result.reason == "fixed":
-            print(f"fixed degree {result.selected_degree}: smoothness {table.split(': ')[1]}")
+            chosen = result.at_degree(result.selected_degree)
+            line = f"fixed degree {result.selected_degree}: smoothness {table.split(': ')[1]}"
+            if chosen.quality is not None:
+                line += f", F-score {chosen.quality.f_score:.3f}"
+                # the figure marks them in red; a fixed degree has no rule to reject it, so say it here
+                count = chosen.quality.n_spurious
+                if count:
+                    line += (f"; {count} spurious piece{'s' if count > 1 else ''} (zero-set components away from "
+                             "the data" + ("" if args.no_picture else ", red in the figure") + ")")
+            print(line)
         else:
             print(f"selected {result.message}; smoothness by degree {table}")
-        print(f"wrote {prefix}.json" + ("" if args.no_picture else f", {prefix}.png")
-              + ("" if args.no_zero_set else (f", {prefix}.ply" if dim == 3 else f", {prefix}.svg, {prefix}.csv")))
+        print("wrote " + ", ".join(str(beside(prefix, suffix)) for suffix in _suffixes(args, dim)))
         if trimmed:
             print(trimmed)
     return 130 if result.reason == "interrupted" else 0
 
 
-def _plan_outputs(args: argparse.Namespace, label: str, dim: int) -> tuple[Path, Outputs]:
-    """The prefix and its outputs, checked (writable, not an input, not a folder) before the fit."""
+def _suffixes(args: argparse.Namespace, dim: int) -> list[str]:
+    """The outputs' suffixes: the ones checked before the fit and listed in the "wrote" line."""
     suffixes = [".json"] + ([] if args.no_picture else [".png"])
     suffixes += [] if args.no_zero_set else ([".ply"] if dim == 3 else [".svg", ".csv"])
-    suffixes += [".html"] if args.html else []
+    return suffixes + ([".html"] if args.html else [])
+
+
+def _plan_outputs(args: argparse.Namespace, label: str, dim: int) -> tuple[Path, Outputs]:
+    """The prefix and its outputs, checked (writable, not an input, not a folder) before the fit."""
+    suffixes = _suffixes(args, dim)
     inputs = [args.input]
     prefix = fit_prefix(args.output) if args.output else default_prefix(label, suffixes, inputs)
     return prefix, Outputs([beside(prefix, s) for s in suffixes], inputs=inputs, make_folders=True)
