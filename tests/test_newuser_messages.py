@@ -44,15 +44,28 @@ def test_fixed_degree_without_spurious_pieces_says_none(tmp_path, capsys):
     assert "spurious" not in out and "red in the figure" not in out
 
 
-@pytest.mark.parametrize("option", ["--degree", "--max-degree"])
-def test_a_degree_above_the_documented_maximum_warns_in_one_line(tmp_path, capsys, option):
+def test_a_degree_above_the_documented_maximum_warns_in_one_line(tmp_path, capsys):
     top = CAPTURE_MAX_DEGREE[2]
-    code, _, err, _ = _fit(tmp_path, capsys, option, str(top + 2), "--no-picture", "--no-zero-set", "-q")
+    code, _, err, _ = _fit(tmp_path, capsys, "--degree", str(top + 2), "--no-picture", "--no-zero-set", "-q")
     assert code == 0
-    warnings = [line for line in err.splitlines() if f"{option} {top + 2} is above {top}" in line]
+    warnings = [line for line in err.splitlines() if f"--degree {top + 2} is above {top}" in line]
     assert len(warnings) == 1 and warnings[0].startswith("ipfit fit: warning:") and "2D" in warnings[0]
-    code, _, err, _ = _fit(tmp_path, capsys, option, str(top), "--no-picture", "--no-zero-set", "-q")
-    assert code == 0 and "is above" not in err  # the maximum itself is documented, hence silent
+    code, _, err, _ = _fit(tmp_path, capsys, "--degree", str(top), "--no-picture", "--no-zero-set", "-q")
+    assert code == 0 and "above" not in err  # the maximum itself is documented, hence silent
+
+
+def test_a_max_degree_above_the_maximum_warns_when_the_loop_gets_there(tmp_path, capsys):
+    top = CAPTURE_MAX_DEGREE[2]
+    # the paper's rule with a negative epsilon never stops early: it climbs to the last degree
+    code, _, err, data = _fit(tmp_path, capsys, "--max-degree", str(top + 2), "--rule", "paper", "--epsilon", "-1",
+                              "--no-picture", "--no-zero-set", "-q", spec="airplane")
+    assert code == 0 and max(d["degree"] for d in data["degrees"]) == top + 2
+    warned = [line for line in err.splitlines() if "above" in line]
+    assert warned == [(f"ipfit fit: warning: --max-degree {top + 2}: the fit went to degree {top + 2}, above {top}, "
+                      "the highest degree ipfit tries and is tested at in 2D: expect slow fits, poor conditioning "
+                      "and spurious pieces.")]
+    code, _, err, data = _fit(tmp_path, capsys, "--max-degree", str(top + 2), "--no-picture", "--no-zero-set", "-q")
+    assert code == 0 and max(d["degree"] for d in data["degrees"]) <= top and "above" not in err
 
 
 def test_the_wrote_line_lists_every_output_html_included(tmp_path, capsys):

@@ -6,11 +6,12 @@ JSON. Without a ``client`` it starts a :class:`~distributed.LocalCluster` of wor
 processes, one thread each, with the BLAS/OpenMP/numba thread counts set to 1 (so the
 workers do not fight over the cores), and stops it at the end.
 
-Reproducibility: shape ``name`` is fitted with ``rng=shape_rng(seed, name)``, a generator
-derived from the batch seed and the shape's *name* (not from its place in the queue or the
-worker that runs it), so ``fit_adaptive(points, normals, rng=shape_rng(seed, name), ...)``
-alone gives the same result, bit for bit, on the same kind of machine with the same thread counts
-(another processor rounds matrix products differently, see the README).
+Reproducibility: shape ``name`` is fitted with ``rng=shape_seed(seed, name)``, a seed derived
+from the batch seed and the shape's *name* (not from its place in the queue or the worker that
+runs it) and written in its row (``seed``) and its result (``batch.shape_seed``), so
+``ipfit fit FILE --seed THAT`` or ``fit_adaptive(points, normals, rng=THAT, ...)`` alone gives the
+same result, bit for bit, on the same kind of machine (another processor rounds matrix products
+differently, see the README). A batch whose every shape is finished starts no cluster.
 
 Names: each shape has a unique name, stable for the same inputs in any order
 (:func:`unique_names`: the file's stem; on a clash, or for ``summary`` and ``index``, the

@@ -28,8 +28,11 @@ options as `ipfit fit`, in parallel on Dask:
   --scheduler ADDRESS    an existing cluster (tcp://host:8786); ipfit must be importable there
 
 OUTDIR receives NAME.json per shape (the result JSON of `ipfit fit`) and summary.csv (and
-summary.parquet with pyarrow): one row per shape with its points, selected degree, measures,
-F-score, spurious components, seconds, status (ok, skipped, failed, cancelled) and error.
+summary.parquet with pyarrow): one row per shape with its seed, points, selected degree,
+measures, F-score, spurious components, seconds, status (ok, skipped, failed, cancelled) and
+error. With --html: NAME.html and a NAME.png thumbnail per shape, index.html, and the one
+plotly.min.js the pages share. Dask's own warnings go to OUTDIR/batch.log. A batch with
+nothing left to do starts no cluster.
 
 NAME is the file's stem (a.ply -> a), the dataset's or the generated shape's name. Where two
 shapes share a name (ignoring case), or for the reserved names summary and index, a file's
@@ -37,8 +40,9 @@ NAME is its file name with dashes (a.ply -> a-ply, a.xyz -> a-xyz), and a name t
 clashes gets 6 hex digits of a hash of its path (a-ply-3f2a9c): names depend on the set of
 inputs, never on their order. A file given twice (a folder and a glob) is fitted once.
 
-Shape NAME is fitted with a random generator made from --seed and NAME, so it gets the same
-result alone (ipfit.batch.shape_rng) or in any batch, on any worker. A shape whose result in
+Shape NAME is fitted with its own seed, made from --seed and NAME and written in summary.csv's
+seed column: `ipfit fit FILE --seed SEED` with the batch's other fit options gives its result
+again, bit for bit, as does any batch on any worker. A shape whose result in
 OUTDIR is valid, of the same file and settings is skipped: re-running after a crash or Ctrl-C
 finishes the rest (a damaged result is fitted again). A shape that cannot be read or fitted,
 or whose worker dies, is a failed row; the rest go on. Ctrl-C cancels the pending shapes,

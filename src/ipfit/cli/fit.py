@@ -206,16 +206,19 @@ def _parse_degree(text: str, dim: int) -> int | None:
     return value
 
 
-def _warn_high_degree(option: str, degree: int | None, dim: int) -> None:
+def _warn_high_degree(option: str, degree: int | None, dim: int, limit: int | None = None) -> None:
     """One stderr line when a degree goes beyond the highest the capture rule tries by default
     (14 in 2D, 8 in 3D, the README's "last degree"): ipfit accepts up to its hard limit
-    (``basis.MAX_DEGREE``), but the monomial basis conditions badly and each degree costs more."""
+    (``basis.MAX_DEGREE``), but the monomial basis conditions badly and each degree costs more.
+    ``limit``: the option's value when ``degree`` is the highest one the loop reached under it."""
     from ..degree.rules import CAPTURE_MAX_DEGREE
 
     top = CAPTURE_MAX_DEGREE[dim]
-    if degree is not None and degree > top:
-        print(f"ipfit fit: warning: {option} {degree} is above {top}, the highest degree ipfit tries and is tested "
-              f"at in {dim}D: expect slow fits, poor conditioning and spurious pieces.", file=sys.stderr)
+    if degree is None or degree <= top:
+        return
+    what = f"{option} {degree} is" if limit is None else f"{option} {limit}: the fit went to degree {degree},"
+    print(f"ipfit fit: warning: {what} above {top}, the highest degree ipfit tries and is tested at in {dim}D: "
+          "expect slow fits, poor conditioning and spurious pieces.", file=sys.stderr)
 
 
 def _report_kept(data, max_points: int | None) -> None:
@@ -241,9 +244,6 @@ def run(args: argparse.Namespace) -> int:
     points, normals = data.points, data.normals
     dim = points.shape[1]
     degree = _parse_degree(args.degree, dim)
-    _warn_high_degree("--degree", degree, dim)
-    if degree is None:
-        _warn_high_degree("--max-degree", args.max_degree, dim)
     if degree is not None and basis.n_coefficients(dim, degree) > len(points):
         raise InvalidInputError(f"--degree: degree {degree} needs at least {basis.n_coefficients(dim, degree)} "
                                 f"points, the input has {len(points)}. Lower the degree.")
@@ -269,6 +269,8 @@ def run(args: argparse.Namespace) -> int:
         else:
             normals = None  # estimated by the fit, on the points it keeps
     method, options, rule = search_settings(args)
+    if degree is not None:  # once every check has passed: the warning starts a fit, never precedes an error
+        _warn_high_degree("--degree", degree, dim)
     resolved = options.for_method(method, dim=dim) if options is not None else None
     shown = Progress(progress_mode(args.quiet), resolved and resolved.iterations,
                      resolved and resolved.polish_iterations)
@@ -282,6 +284,9 @@ def run(args: argparse.Namespace) -> int:
                                   outliers=outliers, rng=args.seed, progress=progress)
     finally:
         shown.close()
+    if degree is None:  # --max-degree: said when the loop went there (it may stop before; the fit checked it)
+        _warn_high_degree("--max-degree", max((d.degree for d in result.degrees), default=None), dim,
+                          limit=args.max_degree)
     payload = result.to_dict()
     payload["input"] = {"source": str(args.input), "n_points": len(points), "normals": source}
     if Path(args.input).exists():  # found again by ipfit plot/mesh/score from any folder
