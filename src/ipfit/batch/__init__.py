@@ -272,7 +272,8 @@ def fit_many(inputs, *, client=None, workers: int | None = None, scheduler: str 
         Bad inputs, names, settings or limits, an output file ipfit did not write, an
         unreachable scheduler: one line, before any shape is fitted.
     IpfitError
-        ``dask.distributed`` is not installed (``pip install 'ipfit[dask]'``).
+        ``dask.distributed`` is not installed (``pip install 'ipfit[dask]'``) and a shape is to be
+        fitted (a batch with nothing to do needs no Dask).
     """
     if client is None and scheduler is None:
         workers = min(2, max_workers()) if workers is None else check_workers(workers)
