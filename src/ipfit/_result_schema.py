@@ -231,8 +231,9 @@ SCHEMA: tuple[Key, ...] = (
     _k("batch", "object", "written by ipfit batch / ipfit.fit_many"),
     _k("batch.settings_hash", "string",
        "hash of the fit settings; a result with the current hash is skipped on resume"),
-    _k("batch.name", "string", "the shape's name in the batch (its random generator is made from it and the seed)"),
+    _k("batch.name", "string", "the shape's name in the batch (its seed is made from it and the batch seed)"),
     _k("batch.seed", "integer >= 0", "the batch seed"),
+    _k("batch.shape_seed", "integer >= 0", "the shape's own seed: ipfit fit --seed with it gives this result"),
     _k("bounds", "bounds", "the data's bounding box, one [low, high] per axis"),
     _k("comparisons", "object of objects", "other fits for comparison, by name (e.g. classic linear, 3L)"),
     _k("comparisons.*.coefficients", "numbers", "its polynomial in graded order", required=True),
@@ -472,7 +473,11 @@ def read_result_json(path: str | os.PathLike) -> dict:
         raise ReadError(f"{path}: no such file. Check the path.") from None
     except IsADirectoryError:
         raise ReadError(f"{path}: is a folder, not a result file. Pass the .json written by ipfit fit.") from None
-    except (OSError, UnicodeDecodeError) as exc:
+    except UnicodeDecodeError as exc:  # an image or a binary point file, given where a result belongs
+        raise ReadError(f"{path}: not a result JSON: it is not text (byte {exc.start} is not UTF-8). Pass the .json "
+                        f"written by ipfit fit (`ipfit fit {path}` would write {path.with_suffix('.json').name}).") \
+            from None
+    except OSError as exc:
         raise ReadError(f"{path}: cannot be read ({exc.__class__.__name__}). Check the file.") from None
     return parse_result_text(text, str(path), ReadError)
 

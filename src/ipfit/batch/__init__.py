@@ -6,11 +6,12 @@ JSON. Without a ``client`` it starts a :class:`~distributed.LocalCluster` of wor
 processes, one thread each, with the BLAS/OpenMP/numba thread counts set to 1 (so the
 workers do not fight over the cores), and stops it at the end.
 
-Reproducibility: shape ``name`` is fitted with ``rng=shape_rng(seed, name)``, a generator
-derived from the batch seed and the shape's *name* (not from its place in the queue or the
-worker that runs it), so ``fit_adaptive(points, normals, rng=shape_rng(seed, name), ...)``
-alone gives the same result, bit for bit, on the same kind of machine with the same thread counts
-(another processor rounds matrix products differently, see the README).
+Reproducibility: shape ``name`` is fitted with ``rng=shape_seed(seed, name)``, a seed derived
+from the batch seed and the shape's *name* (not from its place in the queue or the worker that
+runs it) and written in its row (``seed``) and its result (``batch.shape_seed``), so
+``ipfit fit FILE --seed THAT`` or ``fit_adaptive(points, normals, rng=THAT, ...)`` alone gives the
+same result, bit for bit, on the same kind of machine (another processor rounds matrix products
+differently, see the README). A batch whose every shape is finished starts no cluster.
 
 Names: each shape has a unique name, stable for the same inputs in any order
 (:func:`unique_names`: the file's stem; on a clash, or for ``summary`` and ``index``, the
@@ -62,10 +63,12 @@ from ..exceptions import InvalidInputError
 from ..fitting.options import DEFAULT_DELTA, DEFAULT_EPSILON, DEFAULT_METHOD, DEFAULT_RULE, SearchOptions
 from ._cluster import (
     CONNECT_TIMEOUT,
+    LOGGER,
     THREAD_ENV,
     HeldSignals,
     _client_for,
     check_workers,
+    dask_warnings_logged,
     local_cluster,
     max_workers,
     require_distributed,
@@ -83,12 +86,16 @@ from ._shapes import (
     _row_of,
     expand_inputs,
     shape_rng,
+    shape_seed,
     unique_names,
 )
+from ._thumbnail import write_thumbnail
 
-__all__ = ["fit_many", "BatchResult", "FitSettings", "shape_rng", "local_cluster", "expand_inputs", "unique_names",
+__all__ = ["fit_many", "BatchResult", "FitSettings", "shape_seed", "shape_rng", "local_cluster", "expand_inputs",
+           "unique_names",
            "COLUMNS", "THREAD_ENV", "GENERATED_PREFIX", "MAX_GENERATED", "RESERVED_NAMES", "MANIFEST",
-           "CONNECT_TIMEOUT", "max_workers", "write_summary"]
+           "CONNECT_TIMEOUT", "LOGGER", "max_workers", "write_summary", "dask_warnings_logged",
+           "write_thumbnail"]
 
 
 # -- outputs ---------------------------------------------------------------------------------------
@@ -188,16 +195,31 @@ def _file_id(path: Path) -> tuple[int, int]:
     return stat.st_dev, stat.st_ino
 
 
+#: The summary's column types (the rest are text), for ``summary.parquet``.
+_INTEGER_COLUMNS = ("seed", "points", "dim", "selected_degree", "n_spurious")
+_FLOAT_COLUMNS = ("dissimilarity", "smoothness", "distance", "f_score", "seconds")
+
+
 def write_summary(folder: Path, batch: BatchResult) -> list[Path]:
     """``summary.csv`` (and ``summary.parquet`` when pyarrow is installed), written atomically."""
     written = [folder / "summary.csv"]
-    _atomic.write_text_atomic(written[0], batch.to_csv())
+    text = batch.to_csv()
+    _atomic.write_text_atomic(written[0], text)
     try:
         import pyarrow as pa
+        import pyarrow.csv as pcsv
         import pyarrow.parquet as pq
     except ImportError:
         return written
-    table = pa.Table.from_pylist([{k: row.get(k) for k in COLUMNS} for row in batch.rows])
+    # The table is read back from the CSV (floats are written as repr: exact), with every column's
+    # type fixed: building it from Python rows would import pandas, seconds for a batch with
+    # nothing to do, and would guess each column's type from its values.
+    types = {name: pa.int64() if name in _INTEGER_COLUMNS else pa.float64() if name in _FLOAT_COLUMNS
+             else pa.string() for name in COLUMNS}
+    table = pcsv.read_csv(pa.py_buffer(text.encode("utf-8")), parse_options=pcsv.ParseOptions(newlines_in_values=True),
+                          convert_options=pcsv.ConvertOptions(column_types=types, null_values=[""],
+                                                              strings_can_be_null=True,
+                                                              quoted_strings_can_be_null=False))
     buffer = pa.BufferOutputStream()
     pq.write_table(table, buffer)
     written.append(folder / "summary.parquet")
@@ -250,17 +272,18 @@ def fit_many(inputs, *, client=None, workers: int | None = None, scheduler: str 
         Bad inputs, names, settings or limits, an output file ipfit did not write, an
         unreachable scheduler: one line, before any shape is fitted.
     IpfitError
-        ``dask.distributed`` is not installed (``pip install 'ipfit[dask]'``).
+        ``dask.distributed`` is not installed (``pip install 'ipfit[dask]'``) and a shape is to be
+        fitted (a batch with nothing to do needs no Dask).
     """
-    from ..robust import check_outliers
-
-    require_distributed()
     if client is None and scheduler is None:
         workers = min(2, max_workers()) if workers is None else check_workers(workers)
     tasks = expand_inputs(inputs)
+    if not (isinstance(outliers, str) and outliers in ("auto", "none")):  # else already what the check returns
+        from ..robust import check_outliers  # robust imports scipy.stats: a second a batch with nothing to do saves
+
+        outliers = check_outliers(outliers)
     settings = FitSettings(method, options, min_degree, max_degree, epsilon, delta, _rule_name(rule),
-                           check_int(seed, "seed", minimum=0), check_outliers(outliers))
-    _check_settings(settings)
+                           check_int(seed, "seed", minimum=0), outliers)
     folder = None if output is None else Path(output)
     outputs = None
     if folder is not None:
@@ -274,12 +297,20 @@ def fit_many(inputs, *, client=None, workers: int | None = None, scheduler: str 
     for task in tasks:
         stored = None if outputs is None else outputs.finished(task, settings)
         if stored is not None:
-            rows[task.name], results[task.name] = _row_of(task, stored, "skipped"), stored
+            rows[task.name], results[task.name] = _row_of(task, settings.seed, stored, "skipped"), stored
         else:
             todo.append(task)
+    if todo:
+        # Only with work to do: a batch whose every shape is finished answers at once, with no
+        # cluster (its results' settings hash is these settings', which were checked then).
+        require_distributed()
+        _check_settings(settings)
     # The summary is written before the cluster stops: stopping it may take seconds, and a
     # second Ctrl-C then must not lose the summary of the first (it is held until the end).
-    with HeldSignals() as held, _client_for(client, workers, scheduler) if todo else contextlib.nullcontext() as active:
+    with HeldSignals() as held, contextlib.ExitStack() as cluster:
+        if todo:  # Dask's warnings (a busy port, ...) go to the log from the cluster's start to its end
+            cluster.enter_context(dask_warnings_logged())
+            active = cluster.enter_context(_client_for(client, workers, scheduler))
         if outputs is not None:  # once the cluster runs: a scheduler that cannot be reached writes nothing
             outputs.claim()
         try:
@@ -299,6 +330,8 @@ def fit_many(inputs, *, client=None, workers: int | None = None, scheduler: str 
 def _rule_name(rule):
     """A batch records its rule by name (in every result and in the hash that resumes it), and its
     workers look the name up: a registered rule object is its name; a name is kept as given."""
+    if isinstance(rule, str):  # checked with the other settings (degree.rules is slow to import)
+        return rule
     from ..degree.rules import RULES, DegreeRule
 
     if not isinstance(rule, DegreeRule):
@@ -335,7 +368,7 @@ def _run(active, todo, settings, folder, rows, results, progress, total, start) 
             except Exception as exc:  # noqa: BLE001 - the worker died (KilledWorker) or the task was lost
                 reason = "the worker process running it died" if type(exc).__name__ == "KilledWorker" else \
                     _one_line(exc)
-                out = {"row": _row(task, status="failed", error=reason), "result": None}
+                out = {"row": _row(task, settings.seed, status="failed", error=reason), "result": None}
             row, payload = out["row"], out["result"]
             if payload is not None and folder is not None:
                 from ..degree.results import write_result
@@ -352,7 +385,7 @@ def _run(active, todo, settings, folder, rows, results, progress, total, start) 
         with contextlib.suppress(Exception):
             active.cancel(pending)
         for task in todo:
-            rows.setdefault(task.name, _row(task, status="cancelled"))
+            rows.setdefault(task.name, _row(task, settings.seed, status="cancelled"))
         return getattr(exc, "signum", signal.SIGINT)
     return None
 

@@ -1,5 +1,10 @@
 """The Dask cluster of a batch: an embedded LocalCluster, or the caller's client or scheduler.
 
+Dask's own warnings in this process (``Port 8787 is already in use`` when another cluster
+holds the port of its HTTP server, ...) become records of the :data:`LOGGER` logger while a
+batch runs (:func:`dask_warnings_logged`), not lines on the terminal; ``ipfit batch`` writes
+them to ``OUTDIR/batch.log``. The embedded cluster's log records are silenced.
+
 Ctrl-C in a terminal reaches the whole process group, the embedded workers included. The
 workers ignore SIGINT (inherited while the cluster starts, and set again by the preload
 :mod:`ipfit.batch._worker` in a worker that replaces a dead one): the batch process alone
@@ -15,8 +20,10 @@ import logging
 import os
 import signal
 import threading
+import warnings
 from collections.abc import Iterator
 from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
 from typing import Any
 
 from .._utils.optional import require
@@ -24,6 +31,10 @@ from .._utils.validation import check_int
 from ..exceptions import InvalidInputError
 from ._shapes import _one_line
 
+#: The logger that receives Dask's warnings during a batch (a library's: a NullHandler, so that
+#: nothing reaches the terminal unless the caller configures logging).
+LOGGER = "ipfit.batch"
+logging.getLogger(LOGGER).addHandler(logging.NullHandler())
 #: Set in every embedded worker: one BLAS / OpenMP / numba thread per worker process.
 THREAD_ENV = dict.fromkeys(("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS",
                            "VECLIB_MAXIMUM_THREADS", "NUMEXPR_NUM_THREADS"), "1")
@@ -103,6 +114,41 @@ class HeldSignals:
         for sig, handler in self._previous.items():
             signal.signal(sig, handler)
         self._previous = {}
+
+
+def _dask_roots() -> tuple[str, ...]:
+    """The folders of the packages whose warnings are Dask's own."""
+    import importlib.util
+
+    roots = []
+    for name in ("dask", "distributed", "tornado", "bokeh"):
+        spec = importlib.util.find_spec(name)
+        if spec is not None and spec.origin:
+            roots.append(str(Path(spec.origin).parent) + os.sep)
+    return tuple(roots)
+
+
+@contextlib.contextmanager
+def dask_warnings_logged() -> Iterator[None]:
+    """While the block runs, Python warnings raised in Dask's code (dask, distributed, tornado,
+    bokeh) are records of the :data:`LOGGER` logger, on one line each; other warnings show as before.
+
+    Dask warns from its own threads too (the scheduler's event loop), so this swaps the one
+    process-wide ``warnings.showwarning``, restored at the end (``warnings.catch_warnings``).
+    """
+    roots = _dask_roots()
+    logger = logging.getLogger(LOGGER)
+    with warnings.catch_warnings():
+        shown = warnings.showwarning
+
+        def route(message, category, filename, lineno, file=None, line=None) -> None:
+            if str(filename).startswith(roots):
+                logger.warning("%s: %s", category.__name__, " ".join(str(message).split()))
+            else:
+                shown(message, category, filename, lineno, file, line)
+
+        warnings.showwarning = route
+        yield
 
 
 @contextlib.contextmanager

@@ -20,9 +20,9 @@ from .._utils.validation import check_int, error
 from ..exceptions import InvalidInputError
 from ..fitting.options import DEFAULT_DELTA, DEFAULT_EPSILON, DEFAULT_METHOD, DEFAULT_RULE, SearchOptions
 
-#: The summary table's columns, in order.
-COLUMNS = ("name", "input", "points", "dim", "selected_degree", "dissimilarity", "smoothness", "distance", "f_score",
-           "n_spurious", "seconds", "status", "error")
+#: The summary table's columns, in order (``seed``: the shape's own, :func:`shape_seed`).
+COLUMNS = ("name", "input", "seed", "points", "dim", "selected_degree", "dissimilarity", "smoothness", "distance",
+           "f_score", "n_spurious", "seconds", "status", "error")
 GENERATED_PREFIX = "generated:"
 #: The most shapes ``generated:N`` makes (they are made in memory before the batch starts).
 MAX_GENERATED = 10_000
@@ -30,15 +30,31 @@ MAX_GENERATED = 10_000
 RESERVED_NAMES = ("summary", "index")
 
 
+def shape_seed(seed: int, name: str) -> int:
+    """The seed shape ``name`` is fitted with in a batch of seed ``seed``: a whole number below 2**32.
+
+    It depends on the batch seed and the shape's *name* only (not on its place in the queue
+    or its worker), and it is an ordinary seed: ``ipfit fit FILE --seed THAT`` (or
+    ``fit_adaptive(..., rng=THAT)``) with the batch's other options gives the shape's batch
+    result. The batch writes it in ``summary.csv`` and in the result's ``batch.shape_seed``.
+
+    >>> shape_seed(0, "heart") == shape_seed(0, "heart"), shape_seed(0, "heart") == shape_seed(0, "bunny")
+    (True, False)
+    >>> shape_seed(0, "heart") == shape_seed(1, "heart")
+    False
+    """
+    text = f"{check_int(seed, 'seed', minimum=0)}:{name}"
+    return int.from_bytes(hashlib.sha256(text.encode("utf-8")).digest()[:4], "little")
+
+
 def shape_rng(seed: int, name: str) -> np.random.Generator:
-    """The generator shape ``name`` is fitted with in a batch of seed ``seed``.
+    """The generator of shape ``name`` in a batch of seed ``seed``: ``default_rng(shape_seed(seed, name))``.
 
     >>> a, b = shape_rng(0, "heart").random(), shape_rng(0, "heart").random()
     >>> a == b, a == shape_rng(0, "bunny").random(), a == shape_rng(1, "heart").random()
     (True, False, False)
     """
-    words = np.frombuffer(hashlib.sha256(name.encode("utf-8")).digest()[:16], dtype="<u4")
-    return np.random.default_rng(np.random.SeedSequence([check_int(seed, "seed", minimum=0), *map(int, words)]))
+    return np.random.default_rng(shape_seed(seed, name))
 
 
 @dataclass(frozen=True)
@@ -66,7 +82,8 @@ class FitSettings:
     def hash(self) -> str:
         from .. import __version__
 
-        text = json.dumps({**self.to_dict(), "ipfit": __version__}, sort_keys=True)
+        # "seeding": results of the earlier per-name generators (not ipfit fit's) are fitted again
+        text = json.dumps({**self.to_dict(), "ipfit": __version__, "seeding": "shape_seed"}, sort_keys=True)
         return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
 
     def fit(self, points, normals, name: str, faces=None):
@@ -74,7 +91,7 @@ class FitSettings:
 
         return fit_adaptive(points, normals, method=self.method, options=self.options, min_degree=self.min_degree,
                             max_degree=self.max_degree, epsilon=self.epsilon, delta=self.delta, rule=self.rule,
-                            faces=faces, outliers=self.outliers, rng=shape_rng(self.seed, name))
+                            faces=faces, outliers=self.outliers, rng=shape_seed(self.seed, name))
 
 
 @dataclass(frozen=True)
@@ -261,13 +278,14 @@ def _one_line(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {text[0]}" if text else type(exc).__name__
 
 
-def _row(task: _Task, **values) -> dict:
-    return {**dict.fromkeys(COLUMNS), "name": task.name, "input": task.source, **values}
+def _row(task: _Task, seed: int, **values) -> dict:
+    return {**dict.fromkeys(COLUMNS), "name": task.name, "input": task.source, "seed": shape_seed(seed, task.name),
+            **values}
 
 
-def _row_of(task: _Task, payload: Mapping, status: str) -> dict:
+def _row_of(task: _Task, seed: int, payload: Mapping, status: str) -> dict:
     measures, quality = payload.get("measures") or {}, payload.get("quality") or {}
-    return _row(task, points=payload.get("input", {}).get("n_points"), dim=payload.get("dim"),
+    return _row(task, seed, points=payload.get("input", {}).get("n_points"), dim=payload.get("dim"),
                 selected_degree=payload.get("selected_degree"), dissimilarity=measures.get("dissimilarity"),
                 smoothness=measures.get("smoothness"), distance=measures.get("distance"),
                 f_score=quality.get("f_score"), n_spurious=quality.get("n_spurious"),
@@ -295,8 +313,9 @@ def _fit_task(task: _Task, settings: FitSettings) -> dict:
         if path is not None:
             payload["input"]["path"] = path
         payload["bounds"] = np.column_stack([points.min(axis=0), points.max(axis=0)]).tolist()
-        payload["batch"] = {"settings_hash": settings.hash, "name": task.name, "seed": settings.seed}
-        return {"row": _row_of(task, payload, "ok"), "result": payload}
+        payload["batch"] = {"settings_hash": settings.hash, "name": task.name, "seed": settings.seed,
+                            "shape_seed": shape_seed(settings.seed, task.name)}
+        return {"row": _row_of(task, settings.seed, payload, "ok"), "result": payload}
     except Exception as exc:  # noqa: BLE001 - isolate the shape: its row says what went wrong
-        return {"row": _row(task, seconds=time.perf_counter() - start, status="failed", error=_one_line(exc)),
-                "result": None}
+        return {"row": _row(task, settings.seed, seconds=time.perf_counter() - start, status="failed",
+                            error=_one_line(exc)), "result": None}

@@ -27,7 +27,9 @@ SUBCOMMANDS = ("fit", "batch", "normals", "mesh", "plot", "view", "score", "expo
                "reproduce")
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The command line's parser; with ``command``, only that subcommand's options are built (the
+    others are listed, for ``ipfit --help``): building one imports what its choices need."""
     import argparse
     import importlib
 
@@ -50,7 +52,8 @@ def build_parser() -> argparse.ArgumentParser:
             raise
         p = sub.add_parser(module.NAME, help=module.HELP, description=getattr(module, "DESCRIPTION", module.HELP),
                            formatter_class=argparse.RawDescriptionHelpFormatter)
-        module.add_arguments(p)
+        if command is None or command == name:
+            module.add_arguments(p)
         p.set_defaults(_run=module.run)
     return parser
 
@@ -148,7 +151,7 @@ def _main(argv: Sequence[str] | None) -> int:
         warnings.showwarning = _warning_line(label)
         args = None
         try:
-            parser = build_parser()
+            parser = build_parser(command or None)
             args, extra = parser.parse_known_args(argv)
             if not getattr(args, "command", None):
                 if extra:

@@ -39,6 +39,34 @@ positive_int = _whole_number_at_least(1)
 nonnegative_int = _whole_number_at_least(0)
 
 
+class LazyChoices(Sequence[str]):
+    """argparse ``choices`` listed on first use: every start builds the command's parser, and some
+    lists (the fit methods) take seconds of imports that a run which never names one should not pay.
+    Give the option a ``metavar`` (argparse would list the choices to make one) and write
+    ``%(choices)s`` in its help."""
+
+    def __init__(self, load: Callable[[], Sequence[str]]) -> None:
+        self._load = load
+        self._items: tuple[str, ...] | None = None
+
+    def _get(self) -> tuple[str, ...]:
+        if self._items is None:
+            self._items = tuple(self._load())
+        return self._items
+
+    def __contains__(self, value: object) -> bool:
+        return value in self._get()
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._get())
+
+    def __len__(self) -> int:
+        return len(self._get())
+
+    def __getitem__(self, index):
+        return self._get()[index]
+
+
 def finite_float(text: str) -> float:
     try:
         value = float(text)

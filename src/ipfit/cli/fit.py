@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from ._common import (
+    LazyChoices,
     Outputs,
     beside,
     cli_names,
@@ -78,9 +79,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def add_fit_options(parser: argparse.ArgumentParser) -> None:
-    """The fit options shared by ``ipfit fit`` and ``ipfit batch`` (read back by :func:`search_settings`)."""
-    from ..degree.adaptive import fixed_degree_methods
-    from ..degree.rules import RULES
+    """The fit options shared by ``ipfit fit`` and ``ipfit batch`` (read back by :func:`search_settings`).
+
+    The method and rule names are listed on first use (:class:`LazyChoices`): their registries
+    import the whole fitting stack, which a batch with nothing to do never needs.
+    """
     from ..fitting.options import (
         DEFAULT_DELTA,
         DEFAULT_EPSILON,
@@ -97,9 +100,9 @@ def add_fit_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--max-degree", type=positive_int, metavar="G",
                         help="largest degree the adaptive loop tries (default: 14 in 2D and 8 in 3D with the capture "
                         "rule, within 2 points per coefficient; 10 in 2D and 8 in 3D with the other rules)")
-    parser.add_argument("--method", default=None, choices=fixed_degree_methods(), metavar="METHOD",
-                        help="fixed-degree method: " + ", ".join(fixed_degree_methods())
-                        + f" (default {DEFAULT_METHOD}; 'de' and 'pso' are the paper's metaheuristics)")
+    parser.add_argument("--method", default=None, choices=LazyChoices(_method_names), metavar="METHOD",
+                        help="fixed-degree method: %(choices)s"
+                        f" (default {DEFAULT_METHOD}; 'de' and 'pso' are the paper's metaheuristics)")
     parser.add_argument("--epsilon", type=finite_float, default=DEFAULT_EPSILON,
                         help=f"stop when smoothness improves by no more than this (default {DEFAULT_EPSILON})")
     parser.add_argument("--delta", type=nonnegative_float, default=DEFAULT_DELTA,
@@ -108,7 +111,7 @@ def add_fit_options(parser: argparse.ArgumentParser) -> None:
                         default=None, metavar="W",
                         help="weight of the far-field term that keeps the zero set from growing spurious sheets "
                         f"(default {RECOMMENDED.far_term_weight:g}; 0 is the paper's objective)")
-    parser.add_argument("--rule", choices=list(RULES), default=None,
+    parser.add_argument("--rule", choices=LazyChoices(_rule_names), default=None, metavar="RULE",
                         help="degree rule: 'capture' (default) goes on while a degree gains substantially, stops "
                         "once the shape is captured and takes the lowest clean degree within 0.01 of the best "
                         "F-score; 'geometric' is Algorithm 1 restricted to clean degrees; 'paper' is Algorithm 1 "
@@ -127,6 +130,22 @@ def add_fit_options(parser: argparse.ArgumentParser) -> None:
                         help="metaheuristic population (default 4 × the number of coefficients)")
     parser.add_argument("--seed", type=nonnegative_int, default=0,
                         help="random seed for a reproducible run (default 0)")
+
+
+def _method_names() -> tuple[str, ...]:
+    """``degree.adaptive.fixed_degree_methods()`` from the registries themselves: importing
+    degree.adaptive (robust, scipy.stats, ...) would cost a batch with nothing to do a second
+    (tests/test_newuser_messages.py checks the two agree)."""
+    from ..fitting.linear import LINEAR_METHODS
+    from ..fitting.refine import REFINE_METHODS
+
+    return tuple(LINEAR_METHODS) + REFINE_METHODS
+
+
+def _rule_names() -> list[str]:
+    from ..degree.rules import RULES
+
+    return list(RULES)
 
 
 def outlier_setting(text: str) -> str | float:
@@ -187,6 +206,21 @@ def _parse_degree(text: str, dim: int) -> int | None:
     return value
 
 
+def _warn_high_degree(option: str, degree: int | None, dim: int, limit: int | None = None) -> None:
+    """One stderr line when a degree goes beyond the highest the capture rule tries by default
+    (14 in 2D, 8 in 3D, the README's "last degree"): ipfit accepts up to its hard limit
+    (``basis.MAX_DEGREE``), but the monomial basis conditions badly and each degree costs more.
+    ``limit``: the option's value when ``degree`` is the highest one the loop reached under it."""
+    from ..degree.rules import CAPTURE_MAX_DEGREE
+
+    top = CAPTURE_MAX_DEGREE[dim]
+    if degree is None or degree <= top:
+        return
+    what = f"{option} {degree} is" if limit is None else f"{option} {limit}: the fit went to degree {degree},"
+    print(f"ipfit fit: warning: {what} above {top}, the highest degree ipfit tries and is tested at in {dim}D: "
+          "expect slow fits, poor conditioning and spurious pieces.", file=sys.stderr)
+
+
 def _report_kept(data, max_points: int | None) -> None:
     """One stderr line when --max-points dropped points: the loader only records the counts."""
     if max_points is None or len(data) >= data.n_file:
@@ -223,6 +257,11 @@ def run(args: argparse.Namespace) -> int:
     source = "file"
     if normals is None or args.normals == "estimate":
         source = "estimated"
+        if not args.quiet:  # on a big noisy cloud this takes a while: say what is happening
+            after = "" if outliers == "none" else ", after setting its outliers aside"
+            print(f"ipfit fit: {args.input} has no normals: estimating them from its {len(points):,} points{after}"
+                  if normals is None else f"ipfit fit: estimating normals from the {len(points):,} points{after} "
+                  "(--normals estimate: the file's are not used)", file=sys.stderr)
         if outliers == "none":
             from ..normals import estimate_normals
 
@@ -230,6 +269,8 @@ def run(args: argparse.Namespace) -> int:
         else:
             normals = None  # estimated by the fit, on the points it keeps
     method, options, rule = search_settings(args)
+    if degree is not None:  # once every check has passed: the warning starts a fit, never precedes an error
+        _warn_high_degree("--degree", degree, dim)
     resolved = options.for_method(method, dim=dim) if options is not None else None
     shown = Progress(progress_mode(args.quiet), resolved and resolved.iterations,
                      resolved and resolved.polish_iterations)
@@ -243,6 +284,9 @@ def run(args: argparse.Namespace) -> int:
                                   outliers=outliers, rng=args.seed, progress=progress)
     finally:
         shown.close()
+    if degree is None:  # --max-degree: said when the loop went there (it may stop before; the fit checked it)
+        _warn_high_degree("--max-degree", max((d.degree for d in result.degrees), default=None), dim,
+                          limit=args.max_degree)
     payload = result.to_dict()
     payload["input"] = {"source": str(args.input), "n_points": len(points), "normals": source}
     if Path(args.input).exists():  # found again by ipfit plot/mesh/score from any folder
@@ -259,21 +303,34 @@ def run(args: argparse.Namespace) -> int:
             if entry.reason.startswith("rejected"):
                 print(f"degree {entry.degree} {entry.reason}")
         if result.reason == "fixed":
-            print(f"fixed degree {result.selected_degree}: smoothness {table.split(': ')[1]}")
+            chosen = result.at_degree(result.selected_degree)
+            line = f"fixed degree {result.selected_degree}: smoothness {table.split(': ')[1]}"
+            if chosen.quality is not None:
+                line += f", F-score {chosen.quality.f_score:.3f}"
+                # the figure marks them in red; a fixed degree has no rule to reject it, so say it here
+                count = chosen.quality.n_spurious
+                if count:
+                    line += (f"; {count} spurious piece{'s' if count > 1 else ''} (zero-set components away from "
+                             "the data" + ("" if args.no_picture else ", red in the figure") + ")")
+            print(line)
         else:
             print(f"selected {result.message}; smoothness by degree {table}")
-        print(f"wrote {prefix}.json" + ("" if args.no_picture else f", {prefix}.png")
-              + ("" if args.no_zero_set else (f", {prefix}.ply" if dim == 3 else f", {prefix}.svg, {prefix}.csv")))
+        print("wrote " + ", ".join(str(beside(prefix, suffix)) for suffix in _suffixes(args, dim)))
         if trimmed:
             print(trimmed)
     return 130 if result.reason == "interrupted" else 0
 
 
-def _plan_outputs(args: argparse.Namespace, label: str, dim: int) -> tuple[Path, Outputs]:
-    """The prefix and its outputs, checked (writable, not an input, not a folder) before the fit."""
+def _suffixes(args: argparse.Namespace, dim: int) -> list[str]:
+    """The outputs' suffixes: the ones checked before the fit and listed in the "wrote" line."""
     suffixes = [".json"] + ([] if args.no_picture else [".png"])
     suffixes += [] if args.no_zero_set else ([".ply"] if dim == 3 else [".svg", ".csv"])
-    suffixes += [".html"] if args.html else []
+    return suffixes + ([".html"] if args.html else [])
+
+
+def _plan_outputs(args: argparse.Namespace, label: str, dim: int) -> tuple[Path, Outputs]:
+    """The prefix and its outputs, checked (writable, not an input, not a folder) before the fit."""
+    suffixes = _suffixes(args, dim)
     inputs = [args.input]
     prefix = fit_prefix(args.output) if args.output else default_prefix(label, suffixes, inputs)
     return prefix, Outputs([beside(prefix, s) for s in suffixes], inputs=inputs, make_folders=True)

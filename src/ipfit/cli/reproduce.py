@@ -6,7 +6,6 @@ import argparse
 import shlex
 import sys
 
-from ..reproduce import CONFIGS, DATASETS, DEFAULT_CONFIG, EXPERIMENTS, reproduce
 from ._common import nonnegative_int
 
 NAME = "reproduce"
@@ -30,6 +29,9 @@ half a minute whose numbers mean nothing.
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    # imported here, not with the module: every command imports this module to list it
+    from ..reproduce import CONFIGS, DATASETS, DEFAULT_CONFIG, EXPERIMENTS
+
     parser.add_argument("-o", "--output", dest="output", required=True, metavar="DIR",
                         help="output folder (created)")
     mode = parser.add_mutually_exclusive_group()
@@ -46,6 +48,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from ..reproduce import reproduce
+
     def log(line: str) -> None:
         print(line, file=sys.stderr, flush=True)
 
@@ -63,6 +67,8 @@ def run(args: argparse.Namespace) -> int:
 
 def _argv(args: argparse.Namespace) -> list[str]:
     """The options as a canonical command line (recorded in the report)."""
+    from ..reproduce import DEFAULT_CONFIG
+
     out = ["--output", str(args.output)]
     if args.config != DEFAULT_CONFIG:
         out.append(f"--{args.config}")

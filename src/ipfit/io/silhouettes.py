@@ -20,7 +20,7 @@ from ..normals import contour_normals
 from ._base import MIN_POINTS, Raw, short
 
 __all__ = ["trace_silhouette", "read_image", "check_image_pixels", "CONTOUR_SPAN", "IMAGE_SUFFIXES",
-           "MAX_IMAGE_PIXELS"]
+           "MAX_IMAGE_PIXELS", "MIN_SHAPE_POINTS"]
 
 #: Central-difference span for the normals of traced contours (see ``contour_normals``):
 #: ±1 pixel only sees the 45° staircase of a traced boundary, ±2 averages it.
@@ -29,6 +29,12 @@ CONTOUR_SPAN = 2
 #: (a padded float64 copy, and find_contours' own copy): 50 million pixels peak near 1 GB. The
 #: size is checked from the file's header, before anything is decoded.
 MAX_IMAGE_PIXELS = 50_000_000
+#: Fewest boundary points of a traced shape: a smaller outline is a speck (a disc of radius
+#: 3 pixels has about 20), too small to tell a curve by, and the fit's outlier scoring needs
+#: 12 distinct points.
+MIN_SHAPE_POINTS = 20
+_USE_A_SILHOUETTE = ("Use a silhouette: one shape clearly darker or brighter than a plain background, "
+                     "or opaque on a transparent one.")
 IMAGE_SUFFIXES = (".png", ".gif", ".bmp", ".tif", ".tiff", ".jpg", ".jpeg", ".webp", ".pgm", ".pbm", ".ppm")
 
 
@@ -45,14 +51,16 @@ def trace_silhouette(image: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.
     """Outer boundary of the largest shape in an image, with outward normals.
 
     The foreground is the class (Otsu threshold; midway for two-level images) that is rarer
-    on the image border; alpha is used instead of brightness when it varies. The image is
-    padded with background so shapes touching the border close. Points are in pixel units,
-    x to the right, y up (y = −row), at subpixel precision (marching squares).
+    on the image border. The image is padded with background so shapes touching the border
+    close. Points are in pixel units, x to the right, y up (y = −row), at subpixel precision
+    (marching squares). :func:`read_image` chooses the channel: alpha when it separates a
+    shape from a transparent background, otherwise luminance.
 
     Raises
     ------
     InvalidInputError
-        If no shape is found, or the image has more than :data:`MAX_IMAGE_PIXELS` pixels.
+        If the image holds no shape (uniform, or only specks of fewer than
+        :data:`MIN_SHAPE_POINTS` boundary points), or has more than :data:`MAX_IMAGE_PIXELS` pixels.
     """
     from skimage import measure
 
@@ -68,8 +76,7 @@ def trace_silhouette(image: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.
     del img
     lo, hi = float(inner.min()), float(inner.max())
     if not hi > lo:
-        raise InvalidInputError("image: the image is uniform, no shape to trace. Use a silhouette "
-                                "(a shape on a plain background).")
+        raise InvalidInputError(f"image: the image is uniform, no shape to trace. {_USE_A_SILHOUETTE}")
     inner -= lo
     inner /= hi - lo
     if np.all((inner == 0.0) | (inner == 1.0)):  # two levels, now exactly 0 and 1
@@ -92,15 +99,19 @@ def trace_silhouette(image: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.
         if area > best_area:
             best, best_area = c, area
     if best is None or best_area <= 0:
-        raise InvalidInputError("image: no closed shape found. Use a silhouette (a shape on a plain background).")
+        raise InvalidInputError(f"image: no closed shape in the image. {_USE_A_SILHOUETTE}")
     if np.array_equal(best[0], best[-1]):
         best = best[:-1]
     points = np.column_stack([best[:, 1] - 1.0, -(best[:, 0] - 1.0)])
     keep = np.ones(len(points), dtype=bool)  # marching squares can repeat a vertex at saddles
     keep[1:] = np.any(np.diff(points, axis=0) != 0, axis=1)
     points = points[keep]
-    if len(points) < MIN_POINTS:
-        raise InvalidInputError("image: the shape is too small to trace (fewer than 3 boundary points).")
+    if len(points) < MIN_SHAPE_POINTS:
+        column, row = points.mean(axis=0) * [1, -1]
+        raise InvalidInputError(
+            f"image: no shape in the image, only specks: the largest covers {best_area:.3g} pixels "
+            f"near column {column:.0f}, row {row:.0f} (an outline needs at least {MIN_SHAPE_POINTS} "
+            f"boundary points). {_USE_A_SILHOUETTE}")
     return points, contour_normals(points, span=min(CONTOUR_SPAN, (len(points) - 1) // 2))
 
 
@@ -137,9 +148,33 @@ def _open_image(raw: bytes):
 
 
 def _grey_levels(im) -> NDArray:
-    """Alpha where it varies, else brightness, one byte per pixel."""
-    if im.mode in ("RGBA", "LA", "PA") or (im.mode == "P" and "transparency" in im.info):
-        alpha = np.asarray((im.convert("RGBA") if im.mode == "P" else im).getchannel("A"))
-        if alpha.min() != alpha.max():
+    """The channel that carries the shape: alpha when it separates one, else luminance.
+
+    Alpha carries a shape when the image's background is transparent: most of the border
+    below the level that splits alpha in two. An opaque image with a few transparent pixels
+    (scikit-image's ``horse.png`` has 12, its rounded corners) draws its shape in colour, so
+    it is traced from its luminance, composited over white as a viewer shows it.
+    Single-channel images of more than 8 bits (16-bit PNG or TIFF, integer or float TIFF)
+    keep their full depth: converting them to 8 bits would clip every level above 255.
+    """
+    from PIL import Image
+
+    if im.mode in ("RGBA", "LA", "PA", "RGBa", "La") or (im.mode == "P" and "transparency" in im.info):
+        rgba = im.convert("RGBA")
+        alpha = np.asarray(rgba.getchannel("A"))
+        if _alpha_carries_shape(alpha):
             return alpha
+        white = Image.new("RGBA", rgba.size, (255, 255, 255, 255))
+        return np.asarray(Image.alpha_composite(white, rgba).convert("L"))
+    if im.mode in ("I", "F") or im.mode.startswith("I;16"):
+        return np.asarray(im)
     return np.asarray(im.convert("L"))
+
+
+def _alpha_carries_shape(alpha: NDArray) -> bool:
+    """Whether alpha separates a shape: it varies, and most of the image's border is transparent."""
+    lo, hi = int(alpha.min()), int(alpha.max())
+    if lo == hi:
+        return False
+    border = np.concatenate([alpha[0], alpha[-1], alpha[:, 0], alpha[:, -1]])
+    return bool(np.mean(border < (lo + hi) / 2) > 0.5)

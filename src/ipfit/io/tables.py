@@ -73,8 +73,19 @@ def read_text(path: Path, raw: bytes) -> Raw:
     return _columns(path, table, names)
 
 
+#: Rows searched for a number before a text file that fails to read is called a text without numbers.
+_NUMBER_SEARCH_ROWS = 10_000
+
+
 def _diagnose_table(path: Path, body: list[str], numbers: list[int], delimiter: str | None, ncols: int) -> None:
     """Find the first bad line (only on failure: a Python loop is fine here) and raise."""
+    # A prose or a list of words is no table with a bad row: say that nothing in it is a number
+    # (its first line, taken for a header, would otherwise set the expected column count).
+    searched = body[:_NUMBER_SEARCH_ROWS]
+    if not any(_is_number(word) for line in searched for word in _split(line, delimiter)):
+        where = "in it" if len(searched) == len(body) else f"in its first {len(searched):,} rows"
+        raise ReadError(f"{path}: nothing {where} is a number, so it holds no points (a text document?). "
+                        "Expected one point per row: x y [z], optionally followed by the normal's components.")
     for number, line in zip(numbers, body, strict=True):
         words = _split(line, delimiter)
         if len(words) != ncols:

@@ -41,7 +41,8 @@ from .figure import (
                      result_figure,
 )
 from .geometry import decimate, spurious_flags
-from .pages import index_page, page, to_html, write_html
+from .pages import PLOTLY_SCRIPT, index_page, page, to_html, write_html, write_plotly_script
 
-__all__ = ["result_figure", "to_html", "write_html", "index_page", "decimate", "spurious_flags", "page", "MAX_FACES",
+__all__ = ["result_figure", "to_html", "write_html", "write_plotly_script", "PLOTLY_SCRIPT", "index_page", "decimate",
+           "spurious_flags", "page", "MAX_FACES",
            "MAX_POINTS", "OUTLIER_COLOR", "REASONS", "SPURIOUS_COLOR", "SURFACE_COLOR", "CURVE_COLOR", "CURRENT_ROW"]

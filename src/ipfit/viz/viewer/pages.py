@@ -11,7 +11,11 @@ from numpy.typing import ArrayLike
 from ..._utils.validation import error
 from .figure import result_figure
 
-__all__ = ["page", "to_html", "write_html", "index_page"]
+__all__ = ["page", "to_html", "write_html", "index_page", "write_plotly_script", "PLOTLY_SCRIPT"]
+
+#: The file name of plotly's script when pages share one copy beside them
+#: (``write_html(..., include_plotlyjs=PLOTLY_SCRIPT)`` and :func:`write_plotly_script`).
+PLOTLY_SCRIPT = "plotly.min.js"
 
 
 def page(title: str, body: str) -> str:
@@ -27,7 +31,9 @@ def to_html(result, points: ArrayLike | None = None, *, full_html: bool = True, 
     """The viewer as HTML: a whole offline page, or with ``full_html=False`` a ``<div>`` (notebooks).
 
     ``include_plotlyjs=True`` inlines plotly's JavaScript (offline, ~4.8 MB); other values
-    are passed to plotly (e.g. ``"cdn"``). ``kwargs`` go to :func:`result_figure`.
+    are passed to plotly (e.g. ``"cdn"``, or :data:`PLOTLY_SCRIPT`: a script beside the page,
+    written once for many pages by :func:`write_plotly_script`). ``kwargs`` go to
+    :func:`result_figure`.
     """
     fig = result_figure(result, points, **kwargs)
     div = fig.to_html(full_html=False, include_plotlyjs=include_plotlyjs, default_width="100%",
@@ -48,6 +54,23 @@ def write_html(result, points: ArrayLike | None, path: str | os.PathLike, **kwar
     if not folder.is_dir():
         raise error("path", "a file in an existing folder", f"{str(path)!r}", f"Create {folder} first.")
     write_text_atomic(path, to_html(result, points, **kwargs))
+
+
+def write_plotly_script(folder: str | os.PathLike) -> Path:
+    """Write plotly's JavaScript to ``folder/plotly.min.js`` (atomically) and return its path.
+
+    Pages written with ``include_plotlyjs=PLOTLY_SCRIPT`` into the same folder load it: a batch's
+    pages then share one copy (~4.8 MB) instead of each inlining its own, and still work offline.
+    """
+    from ..._utils.atomic import write_text_atomic
+    from .figure import _plotly
+
+    _plotly()  # plotly missing: the viewer's one-line error
+    from plotly.offline import get_plotlyjs
+
+    path = Path(folder) / PLOTLY_SCRIPT
+    write_text_atomic(path, get_plotlyjs())
+    return path
 
 
 def index_page(title: str, entries) -> str:
