@@ -11,6 +11,7 @@ import pytest
 from ipfit import io
 from ipfit.cli import build_parser, main
 from ipfit.datasets import synthetic
+from ipfit.degree.adaptive import fit_adaptive
 from ipfit.degree.rules import CAPTURE_MAX_DEGREE, select_degree_capture
 from ipfit.exceptions import ReadError
 
@@ -77,9 +78,6 @@ def test_the_wrote_line_lists_every_output_html_included(tmp_path, capsys):
     assert any(name.endswith(".html") for name in listed)
 
 
-@pytest.mark.xfail(strict=True, reason="degree/results.py ResultView.fixed_degree is 'at most one degree tried'; "
-                   "proposed: the result's adaptive.reason == 'fixed' (reported to the lead; degree/ and "
-                   "viz/plotting.py are not this branch's)")
 def test_the_figure_says_fixed_only_for_a_fixed_degree(tmp_path, capsys):
     from ipfit.viz.plotting import plot_result
 
@@ -134,12 +132,18 @@ def test_view_of_an_image_says_it_is_not_a_result_json(tmp_path, capsys):
     assert not list(tmp_path.iterdir())
 
 
-@pytest.mark.xfail(strict=True, reason="degree/rules.py select_degree_capture takes the lowest degree within "
-                   "TOLERANCE of the best F even when no degree is clean, while its docstring and the message say "
-                   "'the best F-score was taken' (reported to the lead; degree/ is not this branch's)")
-def test_with_no_clean_degree_the_best_f_score_is_what_is_taken():
-    # the open dome: degree 2 (F 0.841) was taken over degree 8 (F 0.849)
-    assert select_degree_capture([2, 4, 6, 8], [0.841, 0.80, 0.83, 0.849], [False] * 4) == 3
+def test_with_no_clean_degree_the_message_says_what_is_taken():
+    # the open dome: degree 2 (F 0.841) was taken over degree 8 (F 0.849), the message
+    # said "the best F-score": it is the lowest degree within the tolerance, and says so
+    assert select_degree_capture([2, 4, 6, 8], [0.841, 0.80, 0.83, 0.849], [False] * 4) == 0
+    assert select_degree_capture([2, 4, 6, 8], [0.82, 0.80, 0.83, 0.849], [False] * 4) == 3
+    from ipfit.degree.rules import CAPTURE
+
+    dome = synthetic.sphere(400, rng=0).points
+    dome = dome[dome[:, 2] > 0.2]  # an open cap: no zero set is closed inside the box
+    result = fit_adaptive(dome, max_degree=4, rng=0)
+    assert not any(CAPTURE.is_clean(d.quality) for d in result.degrees)
+    assert "no degree tried is clean, so the lowest degree within 0.01 of the best F-score was taken" in result.message
 
 
 def test_the_lazy_method_choices_are_the_registry():

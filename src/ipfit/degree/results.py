@@ -162,7 +162,12 @@ class ResultView:
 
     @property
     def fixed_degree(self) -> bool:
-        """True when at most one degree was tried: there is no degree search to show."""
+        """True when the degree was fixed (``ipfit fit --degree``), or the result holds one
+        polynomial and no search: there is no degree search to show. A search that stopped
+        after its first degree is not fixed (its degree was selected)."""
+        adaptive = self.data.get("adaptive")
+        if isinstance(adaptive, Mapping) and "reason" in adaptive:
+            return adaptive["reason"] == "fixed"
         return len(self.degrees) <= 1
 
     @property

@@ -216,7 +216,9 @@ def capture_stop(entries, epsilon: float) -> str | None:
 
 def select_degree_capture(degrees: Sequence[int], f_scores: Sequence[float], clean: Sequence[bool]) -> int:
     """The capture rule's choice: the lowest clean degree whose F-score is within
-    :data:`TOLERANCE` of the best clean one; with no clean degree, the best F-score.
+    :data:`TOLERANCE` of the best clean one; with no clean degree, the same among all degrees
+    (the lowest within :data:`TOLERANCE` of the best F-score: a higher degree must gain more
+    than that to be worth its unclean zero set too).
 
     >>> select_degree_capture([2, 4, 6, 8], [0.70, 0.951, 0.958, 0.99], [True, True, True, False])
     1
@@ -444,8 +446,8 @@ class CaptureRule(DegreeRule):
                 "max_degree": "the last degree was reached",
                 "interrupted": "the run was interrupted"}[reason]
         if not self.is_clean(chosen.quality):
-            return (f"degree {chosen.degree}: no degree tried is clean, so the best F-score was taken; "
-                    f"the loop stopped: {stop}")
+            return (f"degree {chosen.degree}: no degree tried is clean, so the lowest degree within {TOLERANCE:g} "
+                    f"of the best F-score was taken ({chosen.quality.f_score:.3f}); the loop stopped: {stop}")
         return (f"degree {chosen.degree}: the lowest clean degree within {TOLERANCE:g} of the best clean F-score "
                 f"({chosen.quality.f_score:.3f}); the loop stopped: {stop}")
 

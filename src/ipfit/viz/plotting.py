@@ -468,7 +468,7 @@ def _panels(view: ResultView) -> list[tuple[str, str, Any]]:
     """(title, kind, payload) of each panel of a result's figure."""
     panels: list[tuple[str, str, Any]] = []
     fitted = [d for d in view.degrees if d.polynomial is not None]
-    if fitted and not view.fixed_degree:
+    if len(fitted) > 1 and not view.fixed_degree:  # a search to show
         for d in fitted:
             mark = " (selected)" if view.selected_degree == d.degree else ""
             method = _method_label(d.entry.get("method"))
