@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
-from scipy.stats import norm
+from scipy.special import ndtri  # scipy.stats costs every command ~1 s of import for two constants
 
 from .._utils.validation import as_points, check_int, error
 from ..normals.local import check_workers, standardise
@@ -73,6 +73,7 @@ _ROUGH_CAP_EXTENT = 0.25
 # ... and no scale is below 5 % of the spacing: clean synthetic data has a noise scale of 1e-6.
 _FLOOR_SPACINGS = 0.05
 _MODES = ("auto", "none")
+_SQRT_2PI = np.sqrt(2.0 * np.pi)
 # 'auto' acts only on evidence of strays: at least this share of the points scores beyond
 # _EVIDENCE_SCORE. Clean shapes' sharp or sparse parts score just past 1; planted strays put
 # far more of the points beyond 3 (experiments/outlier_flags.py). Below the evidence nothing is
@@ -163,7 +164,7 @@ def _shorth(values: NDArray) -> tuple[float, float]:
     half = len(x) // 2
     widths = x[half:] - x[: len(x) - half]
     j = int(np.argmin(widths))
-    return 0.5 * (x[j] + x[j + half]), widths[j] / 2.0 / norm.ppf(0.75)
+    return 0.5 * (x[j] + x[j + half]), widths[j] / 2.0 / ndtri(0.75)
 
 
 def _seed(tree: cKDTree, counts: NDArray, workers: int) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
@@ -205,7 +206,7 @@ def _rounds(points: NDArray, counts: NDArray, k: int, workers: int):
         nearest = cKDTree(points[at]).query(points[at], k=2, workers=workers)[0][:, 1]
         spacing = float(np.median(np.repeat(nearest, weights)))
         rough = np.quantile(fit.residual[at][fit.neighbours], _ROUGH_QUANTILE, axis=1)
-        rough /= norm.ppf(0.5 + _ROUGH_QUANTILE / 2)
+        rough /= ndtri(0.5 + _ROUGH_QUANTILE / 2)
         cap = np.minimum(max(_ROUGH_CAP_SCALES * sigma, _ROUGH_CAP_SPACINGS * spacing), _ROUGH_CAP_EXTENT * fit.extent)
         scale = np.maximum(np.minimum(rough, cap), max(sigma, _FLOOR_SPACINGS * spacing))
         score = np.maximum(fit.residual / scale / _OFFSET_CUT, fit.offset / _BEYOND_CUT)
@@ -226,13 +227,13 @@ def _gaussian_scale(residuals: NDArray, counts: NDArray) -> float:
     """Gaussian σ of absolute residuals (each counted ``counts`` times): the half-normal part of a
     half-normal + uniform mixture, fitted by EM from the median over 0.6745."""
     r = np.repeat(residuals, counts)
-    sigma = float(np.median(r) / norm.ppf(0.75))
+    sigma = float(np.median(r) / ndtri(0.75))
     top = float(r.max())
     if not (sigma > 0.0 and top > 0.0):
         return sigma
     share = 0.9
     for _ in range(30):
-        normal = share * 2.0 * norm.pdf(r / sigma) / sigma
+        normal = share * 2.0 * np.exp(-((r / sigma) ** 2) / 2.0) / _SQRT_2PI / sigma  # the normal density
         member = normal / (normal + (1.0 - share) / top)
         share = float(member.mean())
         refined = float(np.sqrt((member * r * r).sum() / member.sum())) if member.sum() > 0 else 0.0
