@@ -284,21 +284,23 @@ def test_mesh_trims_2d_curves(tmp_path, capsys):
 
 
 def test_the_figure_draws_the_trimmed_zero_set(fitted_cup):
-    # plot_result(trim=...) draws what `ipfit fit --trim` exports: fewer triangles, all near the data
+    # plot_result(trim=...) draws what `ipfit fit --trim` leaves out lighter and see-through: the
+    # same faces as without trim, some of them light (tests/test_figures_3d.py checks the colours)
     from matplotlib.collections import PolyCollection
 
-    from ipfit.viz.plotting import plot_result
+    from ipfit.viz.plotting import TRIMMED_ALPHA, plot_result
 
     points, poly, _ = fitted_cup
 
     def drawn(fig):
         ax = fig.axes[0]
-        return sum(len(c.get_facecolor()) for c in ax.collections if isinstance(c, PolyCollection))  # one per face
+        return np.concatenate([c.get_facecolor() for c in ax.collections if isinstance(c, PolyCollection)])
 
     whole = drawn(plot_result(poly, points))
     trimmed_zs = ipfit.extract_zero_set(poly, points=points).trimmed(points)
     trimmed = drawn(plot_result(poly, points, trim=trimmed_zs.trim.distance))
-    assert 0 < trimmed < whole
+    light = trimmed[:, 3] == TRIMMED_ALPHA
+    assert len(trimmed) == len(whole) and 0 < light.sum() < len(whole) and not np.any(whole[:, 3] == TRIMMED_ALPHA)
 
 
 def test_plot_trim_draws_less_of_the_closed_cup(cup_file, tmp_path, capsys):
