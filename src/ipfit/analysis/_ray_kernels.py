@@ -6,8 +6,8 @@ releases the GIL (``nogil``); :mod:`ipfit.analysis.rays` runs blocks of rays on 
 
 For each ray u(τ) = p + τ e (normalised coordinates) the kernel builds the univariate
 coefficients of f(u(τ)) by the exact binomial expansion of the monomials (each monomial is a
-lower one times one factor (p_j + τ e_j), see :func:`ipfit.analysis.rays.ray_coefficients`),
-then isolates its real roots in the interval [lo, hi] without eigenvalues: the roots of a
+lower one times one factor (p_j + τ e_j): a shift-and-add on its row of coefficients), then
+isolates its real roots in the interval [lo, hi] without eigenvalues: the roots of a
 polynomial are separated by those of its derivative, so the roots of the derivatives are found
 from the highest (linear) one down, each from the intervals between the roots of the next one,
 on which it is monotone. A sign change on such an interval brackets exactly one root, found by

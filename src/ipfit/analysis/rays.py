@@ -3,7 +3,7 @@
 Restricting f to a ray gives a univariate polynomial of the same degree. Its coefficients are
 computed by exact binomial expansion of the monomial form: each monomial of u(τ) = p + τ e
 is built from a lower one times one factor (p_j + τ e_j), a shift-and-add on coefficient
-rows, so the whole table costs one pass over the basis per ray block and involves no
+rows, so the whole table costs one pass over the basis per ray and involves no
 interpolation or linear solve (sampling at Chebyshev nodes would need a solve whose error
 grows with the degree). To keep the coefficients well scaled, the ray is re-parametrised in
 normalised coordinates around its point nearest the data's centre, with a unit direction:
@@ -17,8 +17,10 @@ Newton step undoes the rounding of the expansion) and accepted only where |f| is
 level. Double roots (tangent rays) come out as one hit. Rays are processed in blocks, on the
 package's worker threads, with nothing per ray kept but its hits: memory stays a few arrays of
 the rays' size whatever the degree. (Companion-matrix eigenvalues, used before, cost a
-(rays, monomials, degree) table and a batched eigenvalue solve per block: 50 s and 480 MB for a
-degree-8 image of 480 × 480 pixels, against about 2 s and 150 MB now; benchmarks/bench_render.py.)
+(rays, monomials, degree) table and a batched eigenvalue solve per block, and ∇f of every hit
+at once: 50 s and 484 MB for ``ipfit render`` of a degree-8 fit at 480 × 480 pixels; the
+compiled kernel takes about 1.3 CPU seconds and 40 MB for such an image,
+benchmarks/bench_render.py.)
 """
 
 from __future__ import annotations
@@ -82,19 +84,6 @@ def _parents(dim: int, degree: int) -> tuple[NDArray[np.int64], NDArray[np.int64
         lowered[j] -= 1
         parent[k], axis[k] = index[tuple(lowered)], j
     return parent, axis
-
-
-def ray_coefficients(poly, p: NDArray, e: NDArray) -> NDArray[np.float64]:
-    """Coefficients (N, degree+1), ascending powers of τ, of p(u) restricted to u = p + τ e."""
-    dim, degree = poly.dim, poly.degree
-    parent, axis = _parents(dim, degree)
-    table = np.zeros((len(p), len(parent), degree + 1))
-    table[:, 0, 0] = 1.0
-    for k in range(1, len(parent)):
-        src, j = table[:, parent[k]], axis[k]
-        table[:, k] = src * p[:, j, None]
-        table[:, k, 1:] += src[:, :-1] * e[:, j, None]
-    return np.einsum("nkt,k->nt", table, poly.coefficients)
 
 
 def _rows(value: ArrayLike, name: str, dim: int) -> NDArray[np.float64]:
