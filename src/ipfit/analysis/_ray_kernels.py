@@ -143,12 +143,12 @@ def _gradient(coefficients, parent, axis, u, m, gm):  # pragma: no cover - compi
 
 
 @njit(**_JIT)
-def ray_roots(coefficients, parent, axis, degree, p, e, lo, hi, residual, first_only, out, flat,
+def ray_roots(coefficients, parent, axis, order, degree, p, e, lo, hi, residual, first_only, out, flat,
               gradient):  # pragma: no cover - compiled
     """Real roots of f along each ray u(τ) = p[i] + τ e[i] with lo[i] <= τ <= hi[i], ascending.
 
     ``coefficients`` (M,) are f's in graded order, ``parent``/``axis`` (M,) say that monomial k
-    is monomial ``parent[k]`` times u_axis[k]; ``degree`` is f's degree. ``p``, ``e`` (n, dim)
+    is monomial ``parent[k]`` times u_axis[k], ``order`` (M,) its degree; ``degree`` is f's. ``p``, ``e`` (n, dim)
     are the rays (normalised coordinates), ``lo``, ``hi`` (n,) the interval of τ searched (±inf
     allowed). Writes the roots into ``out`` (n, ≥ 1), NaN-padded (the caller fills it with NaN);
     with ``first_only``, only the first root (``out`` (n, 1)) and, into ``gradient`` (n, dim),
@@ -187,13 +187,17 @@ def ray_roots(coefficients, parent, axis, degree, p, e, lo, hi, residual, first_
             a = pi[j]
             b = ei[j]
             ak = coefficients[k]
+            top = order[k]  # the monomial's degree: its row ends there (the parent's one before)
             v = table[src, 0] * a
             table[k, 0] = v
             c[0] += ak * v
-            for t in range(1, g + 1):
+            for t in range(1, top):
                 v = table[src, t] * a + table[src, t - 1] * b
                 table[k, t] = v
                 c[t] += ak * v
+            v = table[src, top - 1] * b
+            table[k, top] = v
+            c[top] += ak * v
         largest = 0.0
         for t in range(g + 1):
             largest = max(largest, abs(c[t]))

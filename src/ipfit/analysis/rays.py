@@ -178,6 +178,7 @@ def _ray_hits(poly, o: NDArray, d: NDArray, tmin: NDArray, tmax: NDArray, first_
 
     n, dim = o.shape
     parent, axis = _parents(dim, poly.degree)
+    order = basis.exponents(dim, poly.degree).sum(axis=1)
     coefficients = np.ascontiguousarray(poly.coefficients, dtype=np.float64)
     t_all = np.full((n, 1 if first_only else poly.degree), np.nan)
     flat = np.zeros(n, dtype=bool)
@@ -194,7 +195,7 @@ def _ray_hits(poly, o: NDArray, d: NDArray, tmin: NDArray, tmax: NDArray, first_
         tau = np.full((len(p0), t_all.shape[1]), np.nan)
         grad = np.zeros((len(p0), dim)) if first_only else gradient
         # the interval in τ; inf stays inf (t0 and qn are finite)
-        ray_roots(coefficients, parent, axis, poly.degree, p0, e, (tmin[sl] - t0) * qn, (tmax[sl] - t0) * qn,
+        ray_roots(coefficients, parent, axis, order, poly.degree, p0, e, (tmin[sl] - t0) * qn, (tmax[sl] - t0) * qn,
                   _RESIDUAL_TOL, first_only, tau, flat[sl], grad)
         t = t0[:, None] + tau / qn[:, None]
         with np.errstate(invalid="ignore"):  # rounding may put a root at an end just outside
