@@ -18,7 +18,7 @@ from scipy.spatial import cKDTree
 import ipfit
 from ipfit.datasets import synthetic
 from ipfit.exceptions import InvalidInputError
-from ipfit.zeroset.trim import default_trim_distance, trim_zero_set
+from ipfit.zeroset.trim import default_gap_distance, default_trim_distance, trim_mask, trim_zero_set
 
 from test_cli_mesh_plot_score import run
 
@@ -68,13 +68,18 @@ def test_trimming_the_cup_raises_precision_and_keeps_the_polynomial(fitted_cup):
     before, after = ipfit.quality(zs, points), ipfit.quality(trimmed, points)
     assert after.precision > before.precision + 0.1
     assert after.recall >= before.recall - 0.005  # nothing the data needs went
-    # every kept face's vertices are within the distance of a data point (an independent k-d tree)
-    assert cKDTree(points).query(trimmed.vertices)[0].max() <= distance
-    assert trimmed.vertices[:, 2].max() <= CUP_HEIGHT + distance  # the lid is gone
+    gap = trimmed.trim.gap
+    assert gap == default_gap_distance(points) > distance
+    # every kept face's vertices are within the gap distance of a data point (an independent k-d
+    # tree): within the trim distance, or in a hole between samples that gets no farther
+    assert cKDTree(points).query(trimmed.vertices)[0].max() <= gap
+    assert trimmed.vertices[:, 2].max() <= CUP_HEIGHT + distance  # the lid is gone, to the trim distance
     assert not trimmed.closed and trimmed.trim.removed_faces > 0
-    # the kept faces are exactly those whose three vertices are within the distance
-    near = cKDTree(points).query(zs.vertices)[0] <= distance
-    keep = near[zs.faces].all(axis=1)
+    # every face whose three vertices are within the distance is kept, and no face with a vertex
+    # beyond the gap distance
+    d = cKDTree(points).query(zs.vertices)[0]
+    keep = trim_mask(zs, points)
+    assert np.all(keep[(d <= distance)[zs.faces].all(axis=1)]) and not np.any(keep[(d > gap)[zs.faces].any(axis=1)])
     assert len(trimmed.faces) == keep.sum()
     area = areas(zs.vertices, zs.faces)
     assert math.isclose(areas(trimmed.vertices, trimmed.faces).sum(), area[keep].sum(), rel_tol=1e-9)
@@ -204,7 +209,8 @@ def test_fit_trim_writes_a_smaller_mesh_and_the_same_json(cup_file, tmp_path, ca
     assert len(trimmed.faces) < len(whole.faces)
     distance = default_trim_distance(points)
     assert f"{distance:.4g}" in line[0]
-    assert cKDTree(points).query(np.asarray(trimmed.vertices))[0].max() <= distance * (1 + 1e-6)
+    # within the trim distance, or in a hole between samples no farther than the gap distance
+    assert cKDTree(points).query(np.asarray(trimmed.vertices))[0].max() <= default_gap_distance(points) * (1 + 1e-6)
     a = json.loads((tmp_path / "whole.json").read_text())
     b = json.loads((tmp_path / "trimmed.json").read_text())
     assert a["coefficients"] == b["coefficients"] and "trim" not in b
@@ -278,21 +284,23 @@ def test_mesh_trims_2d_curves(tmp_path, capsys):
 
 
 def test_the_figure_draws_the_trimmed_zero_set(fitted_cup):
-    # plot_result(trim=...) draws what `ipfit fit --trim` exports: fewer triangles, all near the data
+    # plot_result(trim=...) draws what `ipfit fit --trim` leaves out lighter and see-through: the
+    # same faces as without trim, some of them light (tests/test_figures_3d.py checks the colours)
     from matplotlib.collections import PolyCollection
 
-    from ipfit.viz.plotting import plot_result
+    from ipfit.viz.plotting import TRIMMED_ALPHA, plot_result
 
     points, poly, _ = fitted_cup
 
     def drawn(fig):
         ax = fig.axes[0]
-        return sum(len(c.get_facecolor()) for c in ax.collections if isinstance(c, PolyCollection))  # one per face
+        return np.concatenate([c.get_facecolor() for c in ax.collections if isinstance(c, PolyCollection)])
 
     whole = drawn(plot_result(poly, points))
     trimmed_zs = ipfit.extract_zero_set(poly, points=points).trimmed(points)
     trimmed = drawn(plot_result(poly, points, trim=trimmed_zs.trim.distance))
-    assert 0 < trimmed < whole
+    light = trimmed[:, 3] == TRIMMED_ALPHA
+    assert len(trimmed) == len(whole) and 0 < light.sum() < len(whole) and not np.any(whole[:, 3] == TRIMMED_ALPHA)
 
 
 def test_plot_trim_draws_less_of_the_closed_cup(cup_file, tmp_path, capsys):
@@ -337,7 +345,7 @@ def test_the_viewer_draws_the_trimmed_zero_set(fitted_cup):
     kept = meshes(result_figure(poly, points, trim=distance, max_faces=10**7))
     assert 0 < sum(len(t.i) for t in kept) < whole
     vertices = np.vstack([np.column_stack([t.x, t.y, t.z]) for t in kept])
-    assert cKDTree(points).query(vertices)[0].max() <= distance * (1 + 1e-6)
+    assert cKDTree(points).query(vertices)[0].max() <= default_gap_distance(points) * (1 + 1e-6)
     with pytest.raises(InvalidInputError, match="points"):
         result_figure(poly, None, trim=distance)
 
@@ -355,10 +363,10 @@ def test_view_trim_on_the_command_line(cup_file, tmp_path, capsys):
     common = ["fit", path, "--degree", "4", "--method", "3l", "--no-picture", "--html"]
     assert run(capsys, common + ["-o", tmp_path / "whole"])[0] == 0
     assert run(capsys, common + ["--trim", "-o", tmp_path / "cut"])[0] == 0
-    distance = default_trim_distance(points)
+    gap = default_gap_distance(points)  # kept: within the trim distance, or a hole no farther than this
     far = {name: cKDTree(points).query(page_vertices(tmp_path / f"{name}.html"))[0].max()
            for name in ("whole", "cut")}
-    assert far["cut"] <= distance * (1 + 1e-5) < far["whole"]
+    assert far["cut"] <= gap * (1 + 1e-5) < far["whole"]
 
 
 def page_vertices(page) -> np.ndarray:

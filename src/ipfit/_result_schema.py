@@ -223,6 +223,15 @@ SCHEMA: tuple[Key, ...] = (
     _k("outliers.indices", "indices", "which points (0-based, in the input's order) were treated as outliers"),
     _k("quality", "object", "geometric quality of the final polynomial (ipfit score --write)"),
     *(_k(f"quality.{name}", t, m) for name, t, m in _QUALITY),
+    _k("distance_to_zero_set", "object", "true distances from the data to the zero set of the final polynomial "
+       "(ipfit score --write)"),
+    _k("distance_to_zero_set.projected_mean", "number", "mean distance from the data points to their closest points "
+       "on the zero set, user units"),
+    _k("distance_to_zero_set.projected_max", "number", "the largest of those distances"),
+    _k("distance_to_zero_set.taubin_mean", "number", "mean of Taubin's estimate |f| / |∇f| at the same points"),
+    _k("distance_to_zero_set.taubin_max", "number", "the largest of those estimates"),
+    _k("distance_to_zero_set.n_points", "integer >= 0", "data points measured (all, or at most 4000 evenly "
+       "strided)"),
     _k("input", "object", "the data that was fitted"),
     _k("input.source", "string", "INPUT as typed (a path or a bundled dataset name)"),
     _k("input.path", "string", "absolute path of INPUT when it was a file"),

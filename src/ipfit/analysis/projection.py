@@ -68,7 +68,9 @@ def _nearest_line_hits(poly, pts: NDArray) -> NDArray[np.float64]:
     best = np.full(pts.shape, np.nan)
     best_d = np.full(len(pts), np.inf)
     for d in directions:
-        hits = intersect_rays(pts, np.broadcast_to(d, pts.shape), poly, tmin=-np.inf)
+        # Unit directions: |t| is the distance, so each line is searched only as far as the
+        # nearest hit so far (roots farther out cannot be nearer; the search costs by the interval).
+        hits = intersect_rays(pts, np.broadcast_to(d, pts.shape), poly, tmin=-best_d, tmax=best_d)
         t = np.where(np.isfinite(hits.t), np.abs(hits.t), np.inf)
         k = np.argmin(t, axis=1)
         dist = t[np.arange(len(pts)), k]

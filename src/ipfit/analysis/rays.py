@@ -3,16 +3,24 @@
 Restricting f to a ray gives a univariate polynomial of the same degree. Its coefficients are
 computed by exact binomial expansion of the monomial form: each monomial of u(τ) = p + τ e
 is built from a lower one times one factor (p_j + τ e_j), a shift-and-add on coefficient
-rows, so the whole table costs one pass over the basis per ray block and involves no
+rows, so the whole table costs one pass over the basis per ray and involves no
 interpolation or linear solve (sampling at Chebyshev nodes would need a solve whose error
 grows with the degree). To keep the coefficients well scaled, the ray is re-parametrised in
 normalised coordinates around its point nearest the data's centre, with a unit direction:
 the roots of interest then have |τ| of order one.
 
-Real roots are the real eigenvalues of the companion matrices (numpy, batched, balanced by
-LAPACK), kept when their imaginary part is small, then refined by Newton steps on the
-original f along the ray (which undoes the rounding of the expansion) and accepted only where
-|f| is at rounding level. Double roots (tangent rays) come out as one hit.
+Real roots are isolated in compiled code (:mod:`ipfit.analysis._ray_kernels`): the roots of
+the derivatives, from the linear one down, cut the search interval into pieces on which the
+next derivative is monotone, so every sign change of f brackets exactly one root, found by
+safeguarded Newton-bisection; each root is then checked on the original f along the ray (a
+Newton step undoes the rounding of the expansion) and accepted only where |f| is at rounding
+level. Double roots (tangent rays) come out as one hit. Rays are processed in blocks, on the
+package's worker threads, with nothing per ray kept but its hits: memory stays a few arrays of
+the rays' size whatever the degree. (Companion-matrix eigenvalues, used before, cost a
+(rays, monomials, degree) table and a batched eigenvalue solve per block, and ∇f of every hit
+at once: 50 s and 484 MB for ``ipfit render`` of a degree-8 fit at 480 × 480 pixels; the
+compiled kernel takes about 1.3 CPU seconds and 40 MB for such an image,
+benchmarks/bench_render.py.)
 """
 
 from __future__ import annotations
@@ -33,10 +41,8 @@ from .._utils.validation import as_points, check_int, check_real, error
 
 __all__ = ["RayHits", "intersect_rays", "render", "camera_rays", "first_hits"]
 
-_BLOCK = 4096  # rays per block: bounds the (rays, monomials, degree+1) expansion table
-_IMAG_TOL = 1e-5  # eigenvalues with |imag| below this (relative) are candidate real roots
+_BLOCK = 16384  # rays per block and per thread: bounds the block's arrays (a few per ray)
 _RESIDUAL_TOL = 1e-9  # accepted roots: |f| below this fraction of Σ|terms|
-_NEWTON_STEPS = 6
 
 
 class RayHits(NamedTuple):
@@ -80,62 +86,6 @@ def _parents(dim: int, degree: int) -> tuple[NDArray[np.int64], NDArray[np.int64
     return parent, axis
 
 
-def ray_coefficients(poly, p: NDArray, e: NDArray) -> NDArray[np.float64]:
-    """Coefficients (N, degree+1), ascending powers of τ, of p(u) restricted to u = p + τ e."""
-    dim, degree = poly.dim, poly.degree
-    parent, axis = _parents(dim, degree)
-    table = np.zeros((len(p), len(parent), degree + 1))
-    table[:, 0, 0] = 1.0
-    for k in range(1, len(parent)):
-        src, j = table[:, parent[k]], axis[k]
-        table[:, k] = src * p[:, j, None]
-        table[:, k, 1:] += src[:, :-1] * e[:, j, None]
-    return np.einsum("nkt,k->nt", table, poly.coefficients)
-
-
-def _candidate_roots(coef: NDArray) -> NDArray[np.float64]:
-    """Real parts of the nearly real companion eigenvalues, (N, degree), NaN-padded."""
-    n, width = coef.shape
-    out = np.full((n, width - 1), np.nan)
-    size = np.max(np.abs(coef), axis=1)
-    significant = np.abs(coef) > 1e-13 * size[:, None]
-    # Effective degree: a vanishing leading coefficient only drops roots at |τ| ~ 1e13.
-    eff = np.where(significant.any(axis=1), width - 1 - np.argmax(significant[:, ::-1], axis=1), 0)
-    for m in range(1, width):
-        rows = np.flatnonzero(eff == m)
-        if rows.size == 0:
-            continue
-        monic = coef[rows, :m] / coef[rows, m, None]
-        comp = np.zeros((rows.size, m, m))
-        comp[:, np.arange(1, m), np.arange(m - 1)] = 1.0
-        comp[:, :, -1] = -monic
-        eig = np.linalg.eigvals(comp)
-        real = np.abs(eig.imag) <= _IMAG_TOL * (1.0 + np.abs(eig.real))
-        out[rows, :m] = np.where(real, eig.real, np.nan)
-    return out
-
-
-def _newton_on_ray(poly, p: NDArray, e: NDArray, tau: NDArray) -> tuple[NDArray, NDArray, NDArray]:
-    """Newton steps on f(p + τ e) for the finite entries of ``tau``; returns τ, f, Σ|terms|."""
-    rows, cols = np.nonzero(np.isfinite(tau))
-    x = tau[rows, cols].copy()
-    pr, er = p[rows], e[rows]
-    value = poly.evaluate_normalized(pr + x[:, None] * er)
-    for _ in range(_NEWTON_STEPS):
-        _, grad = poly.evaluate_normalized(pr + x[:, None] * er, gradient=True)
-        slope = np.einsum("nd,nd->n", grad, er)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            step = np.where(slope != 0, value / slope, 0.0)
-        trial = x - np.where(np.abs(step) < 0.1 * (1.0 + np.abs(x)), step, 0.0)
-        trial_value = poly.evaluate_normalized(pr + trial[:, None] * er)
-        better = np.abs(trial_value) < np.abs(value)
-        x, value = np.where(better, trial, x), np.where(better, trial_value, value)
-    scale = np.abs(basis.monomials(pr + x[:, None] * er, poly.exponents)) @ np.abs(poly.coefficients)
-    out_tau, out_val, out_scale = (np.full(tau.shape, np.nan) for _ in range(3))
-    out_tau[rows, cols], out_val[rows, cols], out_scale[rows, cols] = x, value, scale
-    return out_tau, out_val, out_scale
-
-
 def _rows(value: ArrayLike, name: str, dim: int) -> NDArray[np.float64]:
     # one ray may come as a single point; anything else goes to as_points as given, so that
     # masks, dtypes and DataFrames are checked there
@@ -160,8 +110,8 @@ def _as_rays(poly, origins: ArrayLike, directions: ArrayLike) -> tuple[NDArray, 
     return np.ascontiguousarray(o), np.ascontiguousarray(d)
 
 
-def intersect_rays(origins: ArrayLike, directions: ArrayLike, poly, tmin: float = 0.0,
-                   tmax: float = math.inf) -> RayHits:
+def intersect_rays(origins: ArrayLike, directions: ArrayLike, poly, tmin: float | ArrayLike = 0.0,
+                   tmax: float | ArrayLike = math.inf) -> RayHits:
     """All real intersections of the rays ``origins + t · directions`` (tmin <= t <= tmax) with f = 0.
 
     Parameters
@@ -169,7 +119,8 @@ def intersect_rays(origins: ArrayLike, directions: ArrayLike, poly, tmin: float 
     origins, directions : (N, dim) arrays (or one row, shared by all rays). Directions need
         not be unit vectors (t is in units of their length) but must not be zero.
     poly : ImplicitPolynomial
-    tmin, tmax : the part of each ray to search; ``-inf`` and ``inf`` are allowed.
+    tmin, tmax : the part of each ray to search: numbers, or (N,) arrays (one interval per ray);
+        ``-inf`` and ``inf`` are allowed.
 
     Returns
     -------
@@ -186,18 +137,14 @@ def intersect_rays(origins: ArrayLike, directions: ArrayLike, poly, tmin: float 
     >>> hits.count.tolist(), hits.t.round(12).tolist()
     ([2], [[2.0, 4.0]])
     """
-    tmin = -math.inf if tmin == -math.inf else check_real(tmin, "tmin")
-    tmax = math.inf if tmax == math.inf else check_real(tmax, "tmax")
-    if tmin > tmax:
-        raise error("tmax", f"a value >= tmin ({tmin})", str(tmax))
     o, d = _as_rays(poly, origins, directions)
-    n, degree = len(o), poly.degree
-    t_all = np.full((n, degree), np.nan)
-    flat = np.zeros(n, dtype=bool)
-    for start in range(0, n, _BLOCK):
-        sl = slice(start, start + _BLOCK)
-        t_all[sl], flat[sl] = _block_hits(poly, o[sl], d[sl], tmin, tmax)
-    t_all.sort(axis=1)  # NaNs last
+    n = len(o)
+    lo, hi = _limits(tmin, "tmin", n, -math.inf), _limits(tmax, "tmax", n, math.inf)
+    if np.any(lo > hi):
+        first = int(np.flatnonzero(lo > hi)[0])
+        raise error("tmax", f"a value >= tmin ({lo[first]})", str(hi[first]) if np.ndim(tmax) == 0
+                    else f"{hi[first]} at ray {first}")
+    t_all, flat, _ = _ray_hits(poly, o, d, lo, hi, first_only=False)
     count = np.isfinite(t_all).sum(axis=1)
     width = int(count.max(initial=0))
     t_all = t_all[:, :max(width, 1)]
@@ -205,30 +152,67 @@ def intersect_rays(origins: ArrayLike, directions: ArrayLike, poly, tmin: float 
     return RayHits(t_all, points, count, flat)
 
 
-def _block_hits(poly, o: NDArray, d: NDArray, tmin: float, tmax: float) -> tuple[NDArray, NDArray]:
+def _limits(value, name: str, n: int, infinite: float) -> NDArray[np.float64]:
+    """``tmin`` or ``tmax`` as one value per ray: a real number (``infinite``, ±inf, allowed) or
+    an (n,) array of them."""
+    if np.ndim(value) == 0:
+        number = infinite if value == infinite else check_real(value, name)
+        return np.full(n, number)
+    limits = np.asarray(value, dtype=np.float64) if np.asarray(value).dtype.kind in "iuf" else None
+    if limits is None or limits.shape != (n,):
+        raise error(name, f"a real number or one per ray ({n})", f"an array of shape {np.shape(value)}")
+    if not np.all(np.isfinite(limits) | (limits == infinite)):
+        raise error(name, f"finite numbers or {infinite}", f"{int(np.sum(~np.isfinite(limits)))} other values")
+    return limits
+
+
+def _ray_hits(poly, o: NDArray, d: NDArray, tmin: NDArray, tmax: NDArray, first_only: bool
+              ) -> tuple[NDArray, NDArray, NDArray | None]:
+    """Hits of the rays ``o + t d`` with tmin <= t <= tmax (per ray), ascending and NaN-padded
+    (n, degree), or the first hit alone (n, 1) and ∇f there (n, dim) with ``first_only``;
+    and which rays lie in the zero set. Blocks of rays run on the worker threads."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from .._utils.threads import default_threads
+    from ._ray_kernels import ray_roots
+
+    n, dim = o.shape
+    parent, axis = _parents(dim, poly.degree)
+    order = basis.exponents(dim, poly.degree).sum(axis=1)
+    coefficients = np.ascontiguousarray(poly.coefficients, dtype=np.float64)
+    t_all = np.full((n, 1 if first_only else poly.degree), np.nan)
+    flat = np.zeros(n, dtype=bool)
+    gradient = np.full((n, dim), np.nan) if first_only else np.zeros((0, dim))
     s = poly.scale
-    p, q = poly.normalization.apply(o), d / s
-    qn = np.linalg.norm(q, axis=1)
-    e = q / qn[:, None]
-    t0 = -np.einsum("nd,nd->n", p, e) / qn
-    p0 = p + t0[:, None] * q  # the ray's point nearest the centre: roots have |τ| ~ 1
-    coef = ray_coefficients(poly, p0, e)
-    flat = np.max(np.abs(coef), axis=1) <= 1e-14 * np.abs(poly.coefficients).sum()
-    tau = _candidate_roots(coef)
-    tau[flat] = np.nan
-    tau, value, size = _newton_on_ray(poly, p0, e, tau)
-    with np.errstate(invalid="ignore"):
-        good = np.abs(value) <= _RESIDUAL_TOL * size
-    tau = np.sort(np.where(good, tau, np.nan), axis=1)
-    # A tangent (double) root comes out as two nearly equal eigenvalues: keep one.
-    same = np.zeros(tau.shape, dtype=bool)
-    with np.errstate(invalid="ignore"):
-        same[:, 1:] = np.abs(np.diff(tau, axis=1)) <= 1e-7 * (1.0 + np.abs(tau[:, 1:]))
-    tau[same] = np.nan
-    t = t0[:, None] + tau / qn[:, None]
-    with np.errstate(invalid="ignore"):
-        t[(t < tmin) | (t > tmax)] = np.nan
-    return t, flat
+
+    def block(start: int) -> None:
+        sl = slice(start, min(start + _BLOCK, n))
+        p, q = poly.normalization.apply(o[sl]), d[sl] / s
+        qn = np.linalg.norm(q, axis=1)
+        e = q / qn[:, None]
+        t0 = -np.einsum("nd,nd->n", p, e) / qn
+        p0 = p + t0[:, None] * q  # the ray's point nearest the centre: roots have |τ| ~ 1
+        tau = np.full((len(p0), t_all.shape[1]), np.nan)
+        grad = np.zeros((len(p0), dim)) if first_only else gradient
+        # the interval in τ; inf stays inf (t0 and qn are finite)
+        ray_roots(coefficients, parent, axis, order, poly.degree, p0, e, (tmin[sl] - t0) * qn, (tmax[sl] - t0) * qn,
+                  _RESIDUAL_TOL, first_only, tau, flat[sl], grad)
+        t = t0[:, None] + tau / qn[:, None]
+        with np.errstate(invalid="ignore"):  # rounding may put a root at an end just outside
+            t[(t < tmin[sl, None]) | (t > tmax[sl, None])] = np.nan
+        t_all[sl] = t
+        if first_only:
+            gradient[sl] = np.where(np.isfinite(t), grad / s, np.nan)  # ∇_x f = ∇_u f / s
+
+    starts = range(0, n, _BLOCK)
+    threads = min(default_threads(), len(starts))
+    if threads > 1:
+        with ThreadPoolExecutor(threads) as pool:
+            list(pool.map(block, starts))  # list(): re-raises a block's exception here
+    else:
+        for start in starts:
+            block(start)
+    return t_all, flat, gradient if first_only else None
 
 
 # -- ray-cast rendering -----------------------------------------------------------------
@@ -278,18 +262,22 @@ def _box_interval(o: NDArray, d: NDArray, box: NDArray) -> tuple[NDArray, NDArra
 
 def first_hits(poly, origins: NDArray, direction: NDArray, bounds: NDArray) -> NDArray[np.float64]:
     """Parameter of each ray's first hit inside the box ``bounds`` (NaN for none), as drawn by :func:`render`."""
+    return _first_hits(poly, origins, direction, bounds)[0]
+
+
+def _first_hits(poly, origins: NDArray, direction: NDArray, bounds: NDArray) -> tuple[NDArray, NDArray]:
+    """First hits inside the box (NaN for none) and ∇f there, (n,) and (n, dim)."""
     box = np.asarray(bounds, dtype=np.float64)
     directions = np.broadcast_to(direction, origins.shape)
     lo, hi = _box_interval(origins, directions, box)
-    first = np.full(len(origins), np.inf)
-    live = np.flatnonzero(lo <= hi)
-    for start in range(0, live.size, _BLOCK):
-        rows = live[start:start + _BLOCK]
-        hits = intersect_rays(origins[rows], directions[rows], poly)
-        inside = (hits.t >= lo[rows, None]) & (hits.t <= hi[rows, None])
-        first[rows] = np.min(np.where(inside, hits.t, np.inf), axis=1)
-    first[~np.isfinite(first)] = np.nan
-    return first
+    first = np.full(len(origins), np.nan)
+    gradient = np.full(origins.shape, np.nan)
+    live = np.flatnonzero(lo <= hi)  # rays that cross the box
+    if live.size:
+        t, _, grad = _ray_hits(poly, np.ascontiguousarray(origins[live]), np.ascontiguousarray(directions[live]),
+                               lo[live], hi[live], first_only=True)
+        first[live], gradient[live] = t[:, 0], grad
+    return first, gradient
 
 
 def render(poly, bounds: ArrayLike, path: str | os.PathLike | None = None, *, size: int | tuple[int, int] = 480,
@@ -333,12 +321,11 @@ def render(poly, bounds: ArrayLike, path: str | os.PathLike | None = None, *, si
     if up not in ("x", "y", "z"):
         raise error("up", "'x', 'y' or 'z'", repr(up))
     origins, direction, light = camera_rays(box, (width, height), view, up)
-    first = first_hits(poly, origins, direction, box)
+    first, gradient = _first_hits(poly, origins, direction, box)
     hit = np.isfinite(first)
     image = np.ones((len(origins), 3))
     if hit.any():
-        pts = origins[hit] + first[hit, None] * direction
-        normal, _ = unit_rows_mask(poly.gradient(pts))
+        normal, _ = unit_rows_mask(gradient[hit])
         facing = np.sign(normal @ -direction)
         normal *= np.where(facing == 0, 1.0, facing)[:, None]  # two-sided: light the side we see
         lambert = np.clip(normal @ light, 0.0, 1.0)

@@ -7,7 +7,9 @@ with the data, the smoothness-versus-degree curve, the classic and 3L fits at th
 degree) without touching pyplot's global state, and can save it atomically. Pieces of a
 zero set with no data near them (spurious components, see :mod:`ipfit.zeroset.quality`) are drawn
 in :data:`SPURIOUS_COLOR`; the points a fit treated as outliers (the result's ``outliers``
-section) in :data:`OUTLIER_COLOR`, with a legend entry "outliers (N)".
+section) in :data:`OUTLIER_COLOR`, with a legend entry "outliers (N)". In 3D figures the surface
+is drawn over the data, which shows see-through beneath it (a cloud drawn over a surface hides
+its shape), and with ``trim`` the parts away from the data are drawn lighter, not left out.
 
 matplotlib is imported only when a function here is called.
 """
@@ -24,11 +26,12 @@ from typing import Any, cast
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._utils.validation import as_faces, as_points, check_choice, check_int, error
+from .._utils.validation import as_faces, as_points, check_choice, check_int, check_positive, error
 from ..degree.results import ResultView, result_view
 from ..polynomial import ImplicitPolynomial
 from ..zeroset.extract import ZeroSet, data_bounds, default_bounds, extract_zero_set
 from ..zeroset.quality import looks_like_contour, spurious_components
+from ..zeroset.trim import trim_mask
 
 __all__ = [
     "plot_curve",
@@ -45,11 +48,18 @@ __all__ = [
 ]
 
 CURVE_COLOR = "#1f5fbf"
+_TRIMMED_CURVE_COLOR = "#a9c1e8"  # the curve's blue, 60 % of the way to white
 SURFACE_COLOR = (0.55, 0.70, 0.92)
 SPURIOUS_COLOR = "#d62728"
 SPURIOUS_ALPHA = 0.25  # 3D: spurious pieces are see-through
+#: 3D: the parts of a surface trimmed away from the data are drawn this much of the way to white,
+#: and see-through (this opacity)
+TRIMMED_LIGHTEN = 0.6
+TRIMMED_ALPHA = 0.45
 POINT_COLOR = "0.45"
 POINT_COLOR_3D = "#303030"
+#: 3D: the data drawn beneath a surface, see-through
+POINT_ALPHA_UNDER = 0.35
 #: The points a fit treated as outliers, in the figure and the viewer: the amber of IBM's
 #: colour-blind-safe palette. Under simulated protanopia, deuteranopia and tritanopia (Machado
 #: et al. 2009) it stays at a CIEDE2000 difference of 16 or more from the grey data, the blue
@@ -68,6 +78,13 @@ MAX_PIXELS = 100_000_000
 MIN_SMOOTHNESS_SPAN = 0.02
 _PLOT_RESOLUTION = {2: 400, 3: 72}
 _DISPLAY_SAMPLES = 2000
+# Inches per panel of a result's figure: a surface needs more room than a curve to show its shape
+# (and matplotlib's 3D axes keep wide margins), so 3D figures have larger panels, at most 3 a row.
+_PANEL_INCHES = {2: 3.4, 3: 4.8}
+_MAX_COLUMNS_3D = 3
+# A result's box is the data's grown by a quarter of its longest side on every side: at this zoom
+# the data's part of it fills the panel, and a piece of zero set near the box's edge may be cut.
+_RESULT_ZOOM_3D = 1.6
 
 
 def _method_label(name) -> str | None:
@@ -229,8 +246,8 @@ def plot_points(points: ArrayLike, ax=None, *, max_points: int = 4000, size: flo
 
 def _scatter(ax, shown: NDArray, size: float, color, **kwargs) -> None:
     if shown.shape[1] == 3:
-        ax.scatter(shown[:, 0], shown[:, 1], shown[:, 2], s=size, c=color, alpha=0.8, depthshade=False, linewidths=0,
-                   **kwargs)
+        ax.scatter(shown[:, 0], shown[:, 1], shown[:, 2], s=size, c=color, depthshade=False, linewidths=0,
+                   **{"alpha": 0.8, **kwargs})
     else:
         ax.scatter(shown[:, 0], shown[:, 1], s=size, c=color, linewidths=0, **{"zorder": 1, **kwargs})
 
@@ -259,12 +276,12 @@ def _camera(ax, view: tuple[float, float], up: str) -> None:
     ax.view_init(elev=view[0], azim=view[1], vertical_axis=check_choice(up, "up", ("x", "y", "z")))
 
 
-def _frame(ax, bounds: NDArray, dim: int, axis_off: bool) -> None:
+def _frame(ax, bounds: NDArray, dim: int, axis_off: bool, zoom: float = 1.15) -> None:
     ax.set_xlim(*bounds[0])
     ax.set_ylim(*bounds[1])
     if dim == 3:
         ax.set_zlim(*bounds[2])
-        ax.set_box_aspect(tuple(np.ptp(bounds, axis=1)), zoom=1.15)  # 3D axes leave wide margins
+        ax.set_box_aspect(tuple(np.ptp(bounds, axis=1)), zoom=zoom)  # 3D axes leave wide margins
     else:
         ax.set_aspect("equal")
     if axis_off:
@@ -335,70 +352,112 @@ def _coarser(zs: ZeroSet, max_faces: int) -> ZeroSet:
 def plot_surface(poly: ImplicitPolynomial | None, points: ArrayLike | None = None, ax=None, *,
                  zero_set: ZeroSet | None = None, bounds: ArrayLike | None = None, margin: float = 0.25,
                  resolution: int | None = None, max_faces: int = 30000, color=SURFACE_COLOR,
-                 show_points: bool = False, spurious: ArrayLike | None = None, spurious_color=SPURIOUS_COLOR,
-                 outliers: ArrayLike | None = None, outlier_color=OUTLIER_COLOR,
-                 view: tuple[float, float] = (20.0, -60.0), up: str = "z", axis_off: bool = False):
+                 show_points: bool | str = False, spurious: ArrayLike | None = None, spurious_color=SPURIOUS_COLOR,
+                 trimmed: ArrayLike | None = None, outliers: ArrayLike | None = None, outlier_color=OUTLIER_COLOR,
+                 view: tuple[float, float] = (20.0, -60.0), up: str = "z", axis_off: bool = False,
+                 zoom: float = 1.15):
     """Draw the zero set of a 3D polynomial as a shaded mesh; returns ``ax`` (a 3D axes).
 
     Parameters
     ----------
     poly : 3D polynomial (may be None when ``zero_set`` is given).
-    points : data, used to choose the box, and drawn over the surface when ``show_points``
-        (only the points on the side facing the camera, judged by the polynomial's
-        gradient, so that the surface hides the back of the cloud).
+    points : data, used to choose the box, and drawn when ``show_points`` is
+        ``"under"``: every point, see-through, beneath the surface (which hides those it
+        covers: what shows is the data the surface misses); or True (``"front"``): over the
+        surface, only the points on the side facing the camera (judged by the polynomial's
+        gradient), so that the surface hides the back of the cloud.
     zero_set : an already extracted zero set.
     max_faces : a mesh with more faces is re-extracted on a coarser grid (or thinned out
-        when it has no polynomial).
+        when it has no polynomial, or when flags are given for its faces).
     spurious : one flag per component of the zero set (as ``zero_set.component_labels``);
         flagged components are drawn in ``spurious_color``.
+    trimmed : one flag per face of the zero set: the faces a trim leaves out
+        (:func:`ipfit.zeroset.trim.trim_mask` is the opposite), drawn lighter and see-through
+        (:data:`TRIMMED_LIGHTEN`, :data:`TRIMMED_ALPHA`).
     outliers : a mask over ``points``, or their indices: drawn (all of them, on either side
-        of the surface: they are off it) in ``outlier_color``, with a legend entry
+        of the surface and over it: they are off it) in ``outlier_color``, with a legend entry
         "outliers (N)" (see :func:`plot_points`).
     view : (elevation, azimuth) in degrees.
     up : the axis drawn vertically, 'x', 'y' or 'z' (scanned meshes such as the bunny are y-up).
+    zoom : how much of the panel the box fills (matplotlib's ``set_box_aspect`` zoom); the
+        box is the data's grown by the margin on every side, so up to about 1.6 keeps the
+        data's part of it inside the panel.
     """
+    style = ("front" if show_points else None) if isinstance(show_points, (bool, np.bool_)) else \
+        check_choice(show_points, "show_points", ("front", "under"))
     pts = None if points is None else as_points(points, dims=(3,))
     zs = _zero_set_for(poly, zero_set, pts, bounds, margin, resolution)
     if zs.dim != 3:
         raise error("poly", "a 3D polynomial (use plot_curve for 2D)", f"a {zs.dim}D one")
-    if spurious is None:  # flags given are for this very zero set: keep it as it is
+    if spurious is None and trimmed is None:  # flags given are for this very zero set: keep it as it is
         zs = _coarser(zs, max_faces)
     flags = _spurious_flags(spurious, zs)
+    faint = _trimmed_flags(trimmed, zs)
     if ax is None:
         ax = _new_axes(3)
     from matplotlib.colors import to_rgba
     from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
-    ax.computed_zorder = False  # draw in zorder: the points go over the surface
+    ax.computed_zorder = False  # draw in zorder: the data under the surface, outliers over it
     if not zs.is_empty:
         # a 3D zero set that is not empty has its mesh
         vertices, faces = cast(NDArray[np.float64], zs.vertices), cast(NDArray[np.int64], zs.faces)
         labels = zs.component_labels
         if len(faces) > max_faces:  # cannot re-extract: thin out evenly
             keep = slice(None, None, math.ceil(len(faces) / max_faces))
-            faces, labels = faces[keep], labels[keep]
+            faces, labels, faint = faces[keep], labels[keep], faint[keep]
         flagged = flags[labels]
         # Spurious pieces go over the shape, see-through (one inside it still shows, one around it hides
-        # nothing), and the points over both.
+        # nothing). The trimmed parts share the shape's collection, so that matplotlib sorts their faces
+        # by depth together: a light lid in front of the wall stays in front of it.
         for part, rgb, alpha, zorder in ((~flagged, color, 1.0, 1), (flagged, spurious_color, SPURIOUS_ALPHA, 2)):
             if part.any():
                 colors = _shaded_colors(vertices, faces[part], to_rgba(rgb)[:3])
                 colors[:, 3] = alpha
+                if zorder == 1:
+                    light = faint[part]
+                    colors[light, :3] = 1.0 - (1.0 - colors[light, :3]) * (1.0 - TRIMMED_LIGHTEN)
+                    colors[light, 3] = TRIMMED_ALPHA
                 # Without antialiasing, neighbouring faces leave no hairline seams between them.
                 ax.add_collection3d(Poly3DCollection(vertices[faces[part]], facecolors=colors, edgecolors="none",
                                                      linewidths=0, antialiased=False, zorder=zorder))
-    if show_points and pts is not None:
+    if style is not None and pts is not None:
         marked = _outlier_flags(outliers, len(pts))
-        surface = poly if poly is not None else zs.polynomial
-        if surface is not None:
-            # An outlier's gradient says nothing about the side it is on: every outlier is drawn.
-            front = _facing_camera(pts, surface, view, up) | (False if marked is None else marked)
-            pts, marked = pts[front], None if marked is None else marked[front]
-        if len(pts):
-            plot_points(pts, ax, zorder=3, outliers=marked, outlier_color=outlier_color)
+        if style == "under":
+            _points_under(ax, pts, marked, outlier_color)
+        else:
+            surface = poly if poly is not None else zs.polynomial
+            if surface is not None:
+                # An outlier's gradient says nothing about the side it is on: every outlier is drawn.
+                front = _facing_camera(pts, surface, view, up) | (False if marked is None else marked)
+                pts, marked = pts[front], None if marked is None else marked[front]
+            if len(pts):
+                plot_points(pts, ax, zorder=3, outliers=marked, outlier_color=outlier_color)
     _camera(ax, view, up)
-    _frame(ax, zs.bounds, 3, axis_off)
+    _frame(ax, zs.bounds, 3, axis_off, check_positive(zoom, "zoom"))
     return ax
+
+
+def _trimmed_flags(trimmed, zs: ZeroSet) -> NDArray[np.bool_]:
+    n_faces = 0 if zs.is_empty else len(cast(NDArray[np.int64], zs.faces))
+    if trimmed is None:
+        return np.zeros(n_faces, dtype=bool)
+    flags = np.asarray(trimmed, dtype=bool).ravel()
+    if flags.shape != (n_faces,):
+        raise error("trimmed", f"{n_faces} flags, one per face of the zero set", f"{flags.size} flags",
+                    "Use ~ipfit.zeroset.trim.trim_mask(zero_set, points).")
+    return flags
+
+
+def _points_under(ax, pts: NDArray, marked: NDArray[np.bool_] | None, outlier_color, max_points: int = 4000) -> None:
+    """The data beneath the surface, see-through, and the outliers (if any) over it."""
+    stride = max(1, math.ceil(len(pts) / max_points))
+    data = pts if marked is None else pts[~marked]
+    if len(data):
+        _scatter(ax, data[::stride], 1.5, POINT_COLOR_3D, alpha=POINT_ALPHA_UNDER, zorder=0)
+    if marked is not None:
+        _scatter(ax, pts[marked][::stride], 4.0, outlier_color, zorder=3, label=f"outliers ({int(marked.sum())})")
+        _outlier_legend(ax)
 
 
 def plot_smoothness(degrees: Sequence[int], smoothness: Sequence[float], selected: int | None = None, ax=None, *,
@@ -503,8 +562,8 @@ def plot_result(result, points: ArrayLike | None = None, path: str | os.PathLike
     """A paper-style figure of a result (Figs. 8–13), optionally saved to ``path``.
 
     Panels, lettered (a), (b), ...: the zero set of every degree tried with the data (in
-    3D the points facing the camera over each surface), the selected one marked; the
-    smoothness against the degree; the comparison fits (classic linear, 3L) when the
+    3D the data see-through beneath each surface, on larger panels), the selected one marked;
+    the smoothness against the degree; the comparison fits (classic linear, 3L) when the
     result holds them. A result of one degree (a fixed-degree fit or a plain polynomial)
     gives one panel for that degree, titled with its measures. With ``points``, spurious
     components (no data within τ, as counted by :func:`ipfit.zeroset.quality.quality`) are drawn
@@ -531,9 +590,9 @@ def plot_result(result, points: ArrayLike | None = None, path: str | os.PathLike
     resolution : grid nodes along the box's longest side (default 400 in 2D, 72 in 3D).
     view, up : 3D camera (elevation, azimuth) and vertical axis, see :func:`plot_surface`.
     mark_spurious : colour the spurious components (needs ``points``).
-    trim : draw only the parts of each zero set within this distance of the data
-        (:meth:`ipfit.zeroset.extract.ZeroSet.trimmed`, as ``ipfit fit --trim`` exports them; needs
-        ``points``); the polynomial is unchanged.
+    trim : draw the parts of each zero set that trimming to the data at this distance leaves
+        out (:meth:`ipfit.zeroset.extract.ZeroSet.trimmed`, as ``ipfit fit --trim`` exports it;
+        needs ``points``) lighter than the rest: see-through in 3D, thin and pale in 2D.
 
     Returns
     -------
@@ -565,9 +624,11 @@ def plot_result(result, points: ArrayLike | None = None, path: str | os.PathLike
     box = _panel_bounds(view_, pts, margin)
     resolution = resolution or _PLOT_RESOLUTION[dim]
     panels = _panels(view_)
-    nrows = math.ceil(len(panels) / max(1, ncols))
+    ncols = max(1, ncols) if dim == 2 else max(1, min(ncols, _MAX_COLUMNS_3D))
+    nrows = math.ceil(len(panels) / ncols)
     ncols = math.ceil(len(panels) / nrows)  # balance the rows: 5 panels as 3 + 2, not 4 + 1
-    size = (3.4 * ncols, 3.4 * nrows + (0.4 if title else 0))
+    inches = _PANEL_INCHES[dim]
+    size = (inches * ncols, inches * nrows + (0.4 if title else 0))
     dpi = _check_dpi(dpi, size)
     fig = Figure(figsize=size, layout="constrained")
     if dim == 3:
@@ -578,8 +639,13 @@ def plot_result(result, points: ArrayLike | None = None, path: str | os.PathLike
         ax = fig.add_subplot(nrows, ncols, index + 1, projection="3d" if dim == 3 and kind == "fit" else None)
         if kind == "fit":
             zs = _coarser(extract_zero_set(payload, bounds=box, resolution=resolution), max_faces)
+            faint = None  # 3D: the faces the trim leaves out
             if trim is not None and pts is not None:
-                zs = zs.trimmed(pts, trim, faces=face_array)
+                if dim == 2:  # the whole curve thin and pale, then the trimmed one over it
+                    plot_curve(None, zero_set=zs, ax=ax, color=_TRIMMED_CURVE_COLOR, linewidth=0.8)
+                    zs = zs.trimmed(pts, trim)
+                else:
+                    faint = ~cast(NDArray[np.bool_], trim_mask(zs, pts, trim, faces=face_array))
             flags = None
             if mark_spurious and kept is not None and not zs.is_empty:
                 flags = spurious_components(zs, kept, faces=kept_faces, ordered_contour=ordered)
@@ -588,8 +654,9 @@ def plot_result(result, points: ArrayLike | None = None, path: str | os.PathLike
             if dim == 2:
                 plot_curve(payload, shown, ax, zero_set=zs, spurious=flags, outliers=shown_outliers, axis_off=True)
             else:
-                plot_surface(payload, shown, ax, zero_set=zs, spurious=flags, outliers=shown_outliers,
-                             show_points=True, view=view, up=up, max_faces=max_faces, axis_off=True)
+                plot_surface(payload, shown, ax, zero_set=zs, spurious=flags, trimmed=faint, outliers=shown_outliers,
+                             show_points="under", view=view, up=up, max_faces=max_faces, axis_off=True,
+                             zoom=_RESULT_ZOOM_3D)
         else:
             g, s = zip(*payload, strict=True)  # payload: (degree, smoothness) pairs
             plot_smoothness(g, s, view_.selected_degree, ax)
