@@ -16,6 +16,10 @@ here as Python would read it, from the docstring's own module and the packages a
 * an object that exists but has no page (an internal setting or helper) is shown as code;
 * a name that does not exist stays a warning, and the nitpicky build fails on it: a reference
   to a renamed or deleted object is always caught.
+
+Figures. ``plot_result`` returns a matplotlib ``Figure`` made without pyplot (it leaves pyplot's
+state alone), which sphinx-gallery's matplotlib scraper cannot see: :func:`figure_scraper` saves
+the figures an example holds in its variables (``fig = ipfit.plot_result(...)``).
 """
 
 from __future__ import annotations
@@ -139,6 +143,21 @@ def resolve_from_home(app, env, node, contnode):
         # it exists, but the site has no page for it: code, not a link
         return nodes.literal("", contnode.astext())
     return None
+
+
+def figure_scraper(block, block_vars, gallery_conf):
+    """sphinx-gallery scraper: the example's new ``Figure`` objects that pyplot does not know."""
+    from matplotlib.figure import Figure
+    from sphinx_gallery.scrapers import figure_rst
+
+    paths = []
+    for value in list(block_vars["example_globals"].values()):
+        if isinstance(value, Figure) and not getattr(value, "_ipfit_gallery_saved", False):
+            path = next(block_vars["image_path_iterator"])
+            value.savefig(path, dpi=90)
+            value._ipfit_gallery_saved = True
+            paths.append(path)
+    return figure_rst(paths, gallery_conf["src_dir"])
 
 
 def setup(app):

@@ -85,6 +85,8 @@ sphinx_gallery_conf = {
     "remove_config_comments": True,
     "within_subsection_order": "FileNameSortKey",
     "reset_modules": ("matplotlib",),
+    # pyplot's figures, and the Figure objects plot_result returns (it leaves pyplot alone)
+    "image_scrapers": ("matplotlib", "_ipfit_docs.figure_scraper"),
     "min_reported_time": 1,
     "show_memory": False,
     "show_signature": False,

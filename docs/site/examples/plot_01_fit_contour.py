@@ -26,4 +26,4 @@ poly = result.polynomial
 print(poly.degree, len(poly.coefficients), "coefficients")
 print("inside at the centre of the data:", poly.contains(cloud.points.mean(axis=0, keepdims=True)))
 
-ipfit.plot_result(result, cloud.points)
+fig = ipfit.plot_result(result, cloud.points)  # a matplotlib Figure: fig.savefig("boot.png") saves it
