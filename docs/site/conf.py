@@ -9,7 +9,6 @@ links to them, resolve without copies. The build is nitpicky and treats warnings
 from __future__ import annotations
 
 import sys
-from importlib.metadata import version as _version
 from pathlib import Path
 
 import matplotlib
@@ -22,7 +21,9 @@ sys.path.insert(0, str(HERE))  # _ipfit_docs (the hooks below)
 project = "ipfit"
 author = "the ipfit developers"
 copyright = "the ipfit developers"  # noqa: A001 (Sphinx's name)
-release = _version("ipfit")  # the one version, from pyproject.toml through the installed metadata
+import ipfit  # noqa: E402
+
+release = ipfit.__version__  # the one version (pyproject.toml reads it from there too)
 version = release
 
 root_doc = "site/index"
