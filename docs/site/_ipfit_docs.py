@@ -110,7 +110,7 @@ def public_name(dotted: str, chain: list[Any]) -> str | None:
     parts = dotted.split(".")
     offset = len(parts) - len(chain) + 1  # parts[offset + i - 1] is the name of chain[i]
     for i, obj in enumerate(chain):
-        if obj is None or i == 0 and len(chain) == 1:
+        if i == 0 or obj is None:  # the module itself; a declared field without a value
             continue
         for name in ipfit.__all__:
             if name in ipfit._LAZY and ipfit._LAZY[name] is not None and getattr(ipfit, name) is obj:

@@ -65,7 +65,8 @@ def broken_links(root: Path) -> list[str]:
                     problems.append(f"{where} (a folder without index.html)")
             elif not target.is_file():
                 problems.append(f"{where} (no such file)")
-            elif parts.fragment and target.suffix == ".html" and unquote(parts.fragment) not in _parse(target, cache).ids:
+            elif (parts.fragment and target.suffix == ".html"
+                  and unquote(parts.fragment) not in _parse(target, cache).ids):
                 problems.append(f"{where} (no id {parts.fragment!r} there)")
     return problems
 
@@ -77,7 +78,8 @@ def missing_pages(root: Path) -> list[str]:
         page = root / "site" / "gallery" / f"{example.stem}.html"
         if not page.is_file():
             problems.append(f"{example.name}: no gallery page {page.relative_to(root)}")
-        elif "sphx-glr-single-img" not in (text := page.read_text(encoding="utf-8")) and "sphx-glr-script-out" not in text:
+        elif not any(mark in page.read_text(encoding="utf-8") for mark in ("sphx-glr-single-img",
+                                                                            "sphx-glr-script-out")):
             problems.append(f"{example.name}: its page shows neither a figure nor output")
     return problems
 

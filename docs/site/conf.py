@@ -20,7 +20,7 @@ sys.path.insert(0, str(HERE))  # _ipfit_docs (the hooks below)
 
 project = "ipfit"
 author = "the ipfit developers"
-copyright = "the ipfit developers"  # noqa: A001 (Sphinx's name)
+copyright = "the ipfit developers"
 import ipfit  # noqa: E402
 
 release = ipfit.__version__  # the one version (pyproject.toml reads it from there too)
@@ -49,13 +49,13 @@ nitpicky = True
 # No intersphinx: the build runs offline, so names of other packages (numpy, scipy, Python's own)
 # cannot be resolved and are not checked; every reference to ipfit's own names is.
 nitpick_ignore_regex = [
-    (r"py:.*", r"(numpy|np|npt|numpy\.typing|scipy|skimage|trimesh|matplotlib|plotly|dask|distributed|pandas"
-               r"|pyarrow|threadpoolctl|numba|typing|collections|functools|os|pathlib|concurrent|threading|dataclasses|enum"
-               r"|abc|json|io)(\..*)?"),
-    (r"py:.*", r"(int|float|str|bytes|bool|complex|object|dict|list|tuple|set|frozenset|type|callable|None|Any"
-               r"|Path|PathLike|ArrayLike|NDArray|Sequence|Mapping|Iterable|Iterator|Callable|Generator|Literal"
-               r"|Self|TypeGuard|NamedTuple|Exception|ValueError|TypeError|Warning|UserWarning|RuntimeWarning"
-               r"|OSError|KeyboardInterrupt)"),
+    (r"py:.*", (r"(numpy|np|npt|numpy\.typing|scipy|skimage|trimesh|matplotlib|plotly|dask|distributed|pandas"
+                r"|pyarrow|threadpoolctl|numba|typing|collections|functools|os|pathlib|concurrent|threading"
+                r"|dataclasses|enum|abc|json|io)(\..*)?")),
+    (r"py:.*", (r"(int|float|str|bytes|bool|complex|object|dict|list|tuple|set|frozenset|type|callable|None|Any"
+                r"|Path|PathLike|ArrayLike|NDArray|Sequence|Mapping|Iterable|Iterator|Callable|Generator|Literal"
+                r"|Self|TypeGuard|NamedTuple|Exception|ValueError|TypeError|Warning|UserWarning|RuntimeWarning"
+                r"|OSError|KeyboardInterrupt)")),
 ]
 
 autosummary_generate = True

@@ -32,7 +32,8 @@ for axis, t, count in zip("xyz", hits.t, hits.count, strict=True):
 # A ray-cast image of the exact zero set, shaded by its normal, beside the data.
 lo, hi = cloud.points.min(axis=0), cloud.points.max(axis=0)
 pad = 0.15 * (hi - lo)
-image = ipfit.render(poly, np.column_stack([lo - pad, hi + pad]), size=320, up="y", view=(20, 30))  # (3, 2): min, max per axis
+bounds = np.column_stack([lo - pad, hi + pad])  # (3, 2): min and max per axis
+image = ipfit.render(poly, bounds, size=320, up="y", view=(20, 30))
 fig, (left, right) = plt.subplots(1, 2, figsize=(8, 4))
 left.scatter(cloud.points[:, 0], cloud.points[:, 1], s=2, color="0.3")
 left.set_aspect("equal")
