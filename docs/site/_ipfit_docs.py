@@ -48,9 +48,13 @@ def constant_comment(app, what, name, obj, options, lines):
     home = home_module(short)
     if home is None:
         return
-    comment = ModuleAnalyzer.for_module(home).find_attr_docs().get(("", short))
+    # the home module, or the one it imported the name from (REFINE_METHODS: refine <- options)
+    modules = [home] + sorted({f"ipfit.{m}" for m in ipfit._LAZY.values() if m} - {home})
+    comment = next((c for m in modules if (c := ModuleAnalyzer.for_module(m).find_attr_docs().get(("", short)))), None)
     if comment:
         lines[:] = list(comment)
+    elif obj.__doc__ == type(obj).__doc__:
+        lines[:] = []  # not the docstring of str or tuple: the page shows the value alone
 
 
 def docstring_owner(source: str | None) -> str | None:
