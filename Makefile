@@ -6,13 +6,20 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.ipfit-installed
 DEMO_OUT ?= demo-output
 
-.PHONY: demo lint test test-slow test-all bench bench-pipeline reproduce clean
+DOCS_STAMP := $(VENV)/.ipfit-docs-installed
+DOCS_OUT ?= build/docs
+
+.PHONY: demo lint test test-slow test-all bench bench-pipeline reproduce docs dist wheel-smoke clean
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install -q --upgrade pip
 	$(BIN)/python -m pip install -q -e '.[test]'
 	touch $(STAMP)
+
+$(DOCS_STAMP): $(STAMP)
+	$(BIN)/python -m pip install -q -e '.[docs]'
+	touch $(DOCS_STAMP)
 
 demo: $(STAMP)
 	$(BIN)/ipfit fit boot --output $(DEMO_OUT)/boot
@@ -48,5 +55,24 @@ bench-pipeline: $(STAMP)
 reproduce: $(STAMP)
 	$(BIN)/ipfit reproduce -o docs/reproduction
 
+# The documentation site into $(DOCS_OUT)/html (open index.html): the user guide, the API reference and
+# the gallery, whose examples run during the build. Nitpicky, warnings are errors; then no internal
+# link may be broken and every public name must have its page (docs/site/check_site.py).
+docs: $(DOCS_STAMP)
+	$(BIN)/sphinx-build -W --keep-going -n -q -b html -c docs/site -d $(DOCS_OUT)/doctrees docs $(DOCS_OUT)/html
+	$(BIN)/python docs/site/check_site.py $(DOCS_OUT)/html
+	@echo "The site: $(DOCS_OUT)/html/index.html"
+
+# sdist and wheel into dist/ (an isolated build with the build-system requirements of pyproject.toml)
+dist: $(STAMP)
+	$(BIN)/python -m pip install -q build
+	rm -rf dist
+	$(BIN)/python -m build -q --outdir dist .
+
+# the wheel installed in a fresh virtual environment: the command line and the smoke tests against it
+wheel-smoke: dist
+	PYTHON=$(PYTHON) bash .ci/wheel-smoke
+
 clean:
-	rm -rf $(VENV) $(DEMO_OUT) .pytest_cache .mypy_cache .ruff_cache .import_linter_cache
+	rm -rf $(VENV) $(DEMO_OUT) .pytest_cache .mypy_cache .ruff_cache .import_linter_cache build dist \
+		docs/site/generated docs/site/gallery docs/sg_execution_times.rst

@@ -72,6 +72,7 @@ def __dir__() -> list[str]:
     return sorted(set(globals()) | set(_LAZY))
 
 
+# The one version of ipfit: pyproject.toml reads it from here (dynamic), the site from the metadata.
 __version__ = "0.1.0"
 
 __all__ = [

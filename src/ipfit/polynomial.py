@@ -273,7 +273,7 @@ class ImplicitPolynomial:
 
         The name scikit-image's model protocol uses (``skimage.measure.ransac`` compares these
         to its ``residual_threshold``), in the data's own units; see
-        :class:`ipfit.model.ImplicitPolynomialModel`.
+        :class:`ipfit.ImplicitPolynomialModel`.
 
         >>> circle = ImplicitPolynomial.from_coefficients([-1, 0, 0, 1, 0, 1], dim=2)
         >>> circle.residuals([[2.0, 0.0], [0.0, 0.5]]).tolist()  # |4 − 1| / 4, |0.25 − 1| / 1
@@ -367,7 +367,7 @@ class ImplicitPolynomial:
     def from_dict(cls, data: Mapping[str, Any], source: str = "result") -> ImplicitPolynomial:
         """The final polynomial of a result's JSON object, validated completely first.
 
-        Every key of ``docs/result-format.md`` is checked (see :mod:`ipfit.results`), so a
+        Every key of ``docs/result-format.md`` is checked (see :mod:`ipfit.degree.results`), so a
         corrupt file gives one :class:`~ipfit.InvalidInputError` naming the bad key.
         """
         data = validate_result(data, source)
@@ -407,31 +407,31 @@ class ImplicitPolynomial:
 
     # -- using the polynomial (ipfit.codegen, rays, projection, curvature) -----------------
     def to_source(self, language: str) -> str:
-        """Standalone source of f and ∇f: see :func:`ipfit.codegen.to_source`."""
+        """Standalone source of f and ∇f: see :func:`ipfit.to_source`."""
         from .analysis.codegen import to_source
 
         return to_source(self, language)
 
     def intersect_rays(self, origins: ArrayLike, directions: ArrayLike, tmin: float = 0.0, tmax: float = math.inf):
-        """Every intersection of rays with the zero set: see :func:`ipfit.rays.intersect_rays`."""
+        """Every intersection of rays with the zero set: see :func:`ipfit.intersect_rays`."""
         from .analysis.rays import intersect_rays
 
         return intersect_rays(origins, directions, self, tmin, tmax)
 
     def project(self, points: ArrayLike):
-        """Closest points on the zero set and true distances: see :func:`ipfit.projection.project`."""
+        """Closest points on the zero set and true distances: see :func:`ipfit.project`."""
         from .analysis.projection import project
 
         return project(self, points)
 
     def curvature(self, points: ArrayLike):
-        """Curvatures of the level set through ``points``: see :func:`ipfit.curvature.curvature`."""
+        """Curvatures of the level set through ``points``: see :func:`ipfit.analysis.curvature.curvature`."""
         from .analysis.curvature import curvature
 
         return curvature(self, points)
 
     def hessian(self, points: ArrayLike) -> NDArray[np.float64]:
-        """Hessian of f at ``points``, shape (N, dim, dim): see :func:`ipfit.curvature.hessian`."""
+        """Hessian of f at ``points``, shape (N, dim, dim): see :func:`ipfit.hessian`."""
         from .analysis.curvature import hessian
 
         return hessian(self, points)

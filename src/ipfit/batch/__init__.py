@@ -237,21 +237,29 @@ def fit_many(inputs, *, client=None, workers: int | None = None, scheduler: str 
 
     Parameters
     ----------
-    inputs : paths, folders, globs, bundled names, ``"generated:N[:SEED]"``, generated shapes
+    inputs : iterable or mapping
+        Paths, folders, globs, bundled names, ``"generated:N[:SEED]"``, generated shapes
         (:func:`ipfit.datasets.collection`) or a ``{name: (points, normals)}`` mapping.
-    client : a ``distributed.Client`` to use (a notebook's own); else ``scheduler`` (an
-        address) is connected to, else an embedded LocalCluster of ``workers`` processes
-        (default 2; at most :func:`max_workers`) runs the batch and is stopped at the end.
-    output : a folder for ``NAME.json`` per shape and ``summary.csv``; shapes whose valid
-        result there has the same settings are skipped (resume). Files there that ipfit
-        did not write are never replaced (see the module's notes).
-    method, options, min_degree, max_degree, epsilon, delta, rule, outliers : as
-        :func:`~ipfit.fit_adaptive`.
-    seed : the batch seed; shape ``name`` uses :func:`shape_rng` ``(seed, name)``.
-    progress : called after each shape with ``{"event": "shape", "name", "status", "done",
-        "failed", "skipped", "running", "total", "elapsed", "eta"}`` (``eta`` in seconds or None).
-    also_writes : more file names the caller will write into ``output`` (``"{name}.html"``
-        for each shape, ``"index.html"``), checked and recorded with the batch's own.
+    client : distributed.Client, optional
+        A client to use (a notebook's own); else ``scheduler`` (an address) is connected to,
+        else an embedded LocalCluster of ``workers`` processes (default 2; at most
+        :func:`max_workers`) runs the batch and is stopped at the end.
+    workers, scheduler : int or str, optional
+        See ``client``.
+    output : str or os.PathLike, optional
+        A folder for ``NAME.json`` per shape and ``summary.csv``; shapes whose valid result
+        there has the same settings are skipped (resume). Files there that ipfit did not write
+        are never replaced (see the module's notes).
+    method, options, min_degree, max_degree, epsilon, delta, rule, outliers
+        As :func:`~ipfit.fit_adaptive`.
+    seed : int
+        The batch seed; shape ``name`` uses :func:`shape_rng` ``(seed, name)``.
+    progress : callable, optional
+        Called after each shape with ``{"event": "shape", "name", "status", "done", "failed",
+        "skipped", "running", "total", "elapsed", "eta"}`` (``eta`` in seconds or None).
+    also_writes : iterable of str
+        More file names the caller will write into ``output`` (``"{name}.html"`` for each
+        shape, ``"index.html"``), checked and recorded with the batch's own.
 
     Returns
     -------

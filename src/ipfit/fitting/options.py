@@ -44,7 +44,9 @@ DEFAULT_RULE = "capture"
 #: ε of Algorithm 1 and δ of the paper's distance (Eq. 5); the paper's values.
 DEFAULT_EPSILON = 0.01
 DEFAULT_ITERATIONS = 500
+#: The paper's refinement: DE alone, without the polish (``fit_adaptive(method=PAPER_METHOD)``).
 PAPER_METHOD = "de"
+#: The paper's degree rule, Algorithm 1 (``fit_adaptive(rule=PAPER_RULE)``).
 PAPER_RULE = "paper"
 
 #: The linear fits that start the population by default: each linear method at its default,
