@@ -51,9 +51,10 @@ Outputs, all written together or not at all (-o PREFIX, or -o PREFIX.json):
   PREFIX.html   with --html: an interactive viewer of every degree (works offline)
 
 --trim [DIST] exports only the part of the zero set within DIST of the data (an open scan stays
-open; without DIST: 5 x the median point spacing, or 2% of the box diagonal if larger); the
-picture and the HTML viewer show the same trimmed zero sets; the polynomial and the JSON keep the
-whole fit, and one line says what went.
+open; without DIST: 2 x the median point spacing, or 1% of the box diagonal if larger, holes
+between samples kept); the picture draws the trimmed part lighter and the HTML viewer shows the
+same trimmed zero sets; the polynomial and the JSON keep the whole fit, and one line says what
+went.
 
 Odd degrees are accepted with a warning: their zero set is never bounded. Ctrl-C (or SIGTERM)
 stops cleanly: the outputs keep every degree already finished; before the first one, nothing

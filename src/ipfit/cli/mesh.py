@@ -21,12 +21,14 @@ the result records ("input"), else one around the result's normalisation.
 
 --trim [DIST] writes only the part of the zero set within DIST of the data (--points DATA, else
 the data the result records), e.g. to export an open scan open: faces with a vertex farther than
-DIST go. Without DIST: 5 x the data's median point spacing, or 2% of its box diagonal if larger.
+DIST go. Without DIST: 2 x the data's median point spacing, or 1% of its box diagonal if larger;
+holes between samples (up to 5 spacings, or 2% of the diagonal, across) are kept.
 """
 
 TRIM_DEFAULT = "auto"
-TRIM_HELP = ("export only the zero set within DIST of the data (data units; default, or 'auto': 5 x the median "
-             "point spacing, at least 2%% of the box diagonal); the polynomial is unchanged")
+TRIM_HELP = ("export only the zero set within DIST of the data (data units; default, or 'auto': 2 x the median "
+             "point spacing, at least 1%% of the box diagonal, holes between samples kept); the polynomial is "
+             "unchanged")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -61,8 +63,9 @@ def add_trim_argument(parser: argparse.ArgumentParser, help: str = TRIM_HELP) ->
     parser.add_argument("--trim", nargs="?", const=TRIM_DEFAULT, type=trim_distance, metavar="DIST", help=help)
 
 
-TRIM_DRAW_HELP = ("draw only the zero set within DIST of the data (data units; default, or 'auto': 5 x the median "
-                  "point spacing, at least 2%% of the box diagonal)")
+TRIM_DRAW_HELP = ("draw only the zero set within DIST of the data (the picture: the rest lighter; data units; "
+                  "default, or 'auto': 2 x the median point spacing, at least 1%% of the box diagonal, holes between "
+                  "samples kept)")
 
 
 def check_trim_with_points(args: argparse.Namespace) -> None:

@@ -24,9 +24,9 @@ When the fit treated points as outliers (the result's "outliers"), they are draw
 legend entry "outliers (N)", if the data drawn are the points fitted (as many rows as "input"
 records); otherwise a warning says so and every point is drawn as data.
 
---trim [DIST] draws only the part of each zero set within DIST of the data, as `ipfit fit --trim`
-and `ipfit mesh --trim` export it (an open scan stays open); without DIST, 5 x the data's median
-point spacing, or 2% of its box diagonal if larger.
+--trim [DIST] draws the part of each zero set within DIST of the data as `ipfit fit --trim` and
+`ipfit mesh --trim` export it (an open scan stays open), the rest lighter; without DIST, 2 x the
+data's median point spacing, or 1% of its box diagonal if larger, holes between samples kept.
 """
 
 MAX_DPI = 2400

@@ -22,8 +22,8 @@ says so and every point is drawn as data.
 
 Without --points, the data recorded in the result ("input") is used when it can be read.
 --trim [DIST] draws only the part of each zero set within DIST of the data, as `ipfit fit --trim`
-and `ipfit mesh --trim` export it; without DIST, 5 x the data's median point spacing, or 2% of its
-box diagonal if larger.
+and `ipfit mesh --trim` export it; without DIST, 2 x the data's median point spacing, or 1% of its
+box diagonal if larger, holes between samples kept.
 Needs plotly: pip install 'ipfit[viewer]'.
 """
 
