@@ -11,7 +11,7 @@ NAME = "plot"
 HELP = "draw a result: the zero set of each degree with the data, smoothness vs degree, classic and 3L fits"
 DESCRIPTION = """\
 Draw RESULT.json (written by `ipfit fit`) as in the paper's Figs. 8-13: the zero set of every
-degree tried with the data (in 3D the points over each surface), the smoothness against the
+degree tried with the data (in 3D the points see-through beneath each surface), the smoothness against the
 degree, and the classic linear and 3L fits at the selected degree when the result holds them.
 A fixed-degree result or a plain polynomial gives one panel. Spurious pieces of a zero set (no
 data near them) are drawn in red. Rendered without a display; the format follows OUT's extension
