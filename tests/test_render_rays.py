@@ -55,9 +55,9 @@ def _sphere_first(o, d, center, radius, lo, hi):
     return _first_in(t, lo, hi), np.abs(disc) / a**2
 
 
-def _torus_first(o, d, major, minor, lo, hi):
-    """First t in [lo, hi] on the torus: the real roots of its quartic in t (numpy's eigenvalues of
-    the hand-expanded coefficients); also how grazing (the smallest |imag| of a root pair)."""
+def _torus_quartic_roots(o, d, major, minor):
+    """The complex roots of the torus's quartic in t along o + t d (numpy's eigenvalues of the
+    companion matrix of the hand-expanded coefficients)."""
     s = major * major - minor * minor
     # A(t) = |o + t d|² + R² − r², B(t) = (o_x + t d_x)² + (o_y + t d_y)², f = A² − 4R² B
     A = np.stack([np.sum(d * d, axis=1), 2 * np.sum(o * d, axis=1), np.sum(o * o, axis=1) + s], axis=1)
@@ -66,11 +66,15 @@ def _torus_first(o, d, major, minor, lo, hi):
     quartic = np.stack([A[:, 0] ** 2, 2 * A[:, 0] * A[:, 1], A[:, 1] ** 2 + 2 * A[:, 0] * A[:, 2],
                         2 * A[:, 1] * A[:, 2], A[:, 2] ** 2], axis=1)
     quartic[:, 2:] -= 4 * major * major * B
-    monic = quartic[:, 1:] / quartic[:, :1]
     companion = np.zeros((len(o), 4, 4))
-    companion[:, 0, :] = -monic
+    companion[:, 0, :] = -quartic[:, 1:] / quartic[:, :1]
     companion[:, np.arange(1, 4), np.arange(3)] = 1.0
-    roots = np.linalg.eigvals(companion)
+    return np.linalg.eigvals(companion)
+
+
+def _torus_first(o, d, major, minor, lo, hi):
+    """First t in [lo, hi] on the torus; also how grazing (the smallest |imag| of a root pair)."""
+    roots = _torus_quartic_roots(o, d, major, minor)
     real = np.abs(roots.imag) <= 1e-9 * (1 + np.abs(roots.real))
     t = np.where(real, roots.real, np.nan)
     pair = np.where(real, np.inf, np.abs(roots.imag)).min(axis=1)
@@ -183,18 +187,8 @@ def _sphere_roots(o, d, center, radius):
 
 
 def _torus_roots(o, d, major, minor):
-    # every real root of the quartic: _torus_first's eigenvalues, all of them
-    s = major * major - minor * minor
-    A = np.stack([np.sum(d * d, axis=1), 2 * np.sum(o * d, axis=1), np.sum(o * o, axis=1) + s], axis=1)
-    B = np.stack([np.sum(d[:, :2] ** 2, axis=1), 2 * np.sum(o[:, :2] * d[:, :2], axis=1),
-                  np.sum(o[:, :2] ** 2, axis=1)], axis=1)
-    quartic = np.stack([A[:, 0] ** 2, 2 * A[:, 0] * A[:, 1], A[:, 1] ** 2 + 2 * A[:, 0] * A[:, 2],
-                        2 * A[:, 1] * A[:, 2], A[:, 2] ** 2], axis=1)
-    quartic[:, 2:] -= 4 * major * major * B
-    companion = np.zeros((len(o), 4, 4))
-    companion[:, 0, :] = -quartic[:, 1:] / quartic[:, :1]
-    companion[:, np.arange(1, 4), np.arange(3)] = 1.0
-    roots = np.linalg.eigvals(companion)
+    """Every real root of the torus's quartic (looser on the imaginary part than _torus_first)."""
+    roots = _torus_quartic_roots(o, d, major, minor)
     real = np.abs(roots.imag) <= 1e-7 * (1 + np.abs(roots.real))
     return np.where(real, roots.real, np.nan)
 
