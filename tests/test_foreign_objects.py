@@ -153,3 +153,11 @@ def test_a_2d_zero_set_is_not_a_mesh():
     for convert in (zs.to_trimesh, zs.to_pyvista, zs.to_open3d):
         with pytest.raises(InvalidInputError, match="^zero set: expected a 3D zero set"):
             convert()
+
+
+def test_trimesh_arrays_are_arrays():
+    """trimesh's TrackedArray (mesh.vertices) is an ndarray subclass, not an object to unpack."""
+    mesh = _ellipsoid_mesh()
+    assert type(mesh.vertices).__module__.startswith("trimesh")
+    np.testing.assert_array_equal(ipfit.fit_3l(mesh.vertices, mesh.vertex_normals, 2).coefficients,
+                                  ipfit.fit_3l(np.asarray(mesh.vertices), np.asarray(mesh.vertex_normals), 2).coefficients)

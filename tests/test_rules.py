@@ -296,7 +296,7 @@ def test_the_registry_holds_the_three_rules_by_name():
 
     parser = argparse.ArgumentParser()
     add_fit_options(parser)
-    assert next(a for a in parser._actions if a.dest == "rule").choices == list(RULES)
+    assert list(next(a for a in parser._actions if a.dest == "rule").choices) == list(RULES)
 
 
 def test_an_unknown_rule_is_refused_in_one_line_naming_the_valid_ones():

@@ -53,8 +53,9 @@ def _package(obj: Any) -> str:
 
 
 def is_foreign(obj: Any) -> bool:
-    """Whether ``obj`` comes from one of the libraries :func:`foreign_parts` reads."""
-    return _package(obj) in ("trimesh", "open3d", "pyvista", "pandas")
+    """Whether ``obj`` comes from one of the libraries :func:`foreign_parts` reads (arrays,
+    trimesh's ``TrackedArray`` among them, are not foreign)."""
+    return not isinstance(obj, np.ndarray) and _package(obj) in ("trimesh", "open3d", "pyvista", "pandas")
 
 
 def foreign_parts(obj: Any, name: str = "points") -> ForeignParts | None:
@@ -74,6 +75,8 @@ def foreign_parts(obj: Any, name: str = "points") -> ForeignParts | None:
         Arrays as the object holds them (checked by the caller), None when ``obj`` is not from
         trimesh, Open3D, PyVista or pandas.
     """
+    if isinstance(obj, np.ndarray):  # trimesh's TrackedArray and other array subclasses are arrays
+        return None
     package = _package(obj)
     kind = f"{package}.{type(obj).__name__}"
     if package == "pandas":

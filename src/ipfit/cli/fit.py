@@ -236,6 +236,7 @@ def _report_kept(data, max_points: int | None) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from .. import basis
+    from .._result_schema import check_coordinates
     from ..datasets.loading import load
     from ..degree.adaptive import fit_adaptive
     from ..exceptions import InvalidInputError
@@ -243,6 +244,7 @@ def run(args: argparse.Namespace) -> int:
     data = load(args.input, max_points=args.max_points)
     _report_kept(data, args.max_points)
     points, normals = data.points, data.normals
+    check_coordinates(points)  # before any line about the fit: data it cannot record is refused first
     dim = points.shape[1]
     degree = _parse_degree(args.degree, dim)
     if degree is not None and basis.n_coefficients(dim, degree) > len(points):
