@@ -559,6 +559,13 @@ def main(argv=None) -> int:
     if args.resume and json_path.exists():
         stored = json.loads(json_path.read_text(encoding="utf-8"))
         done, before = stored["rows"], stored["meta"].get("wall_seconds", 0.0)
+        # the page names every run its rows come from: the earlier command(s), then this one
+        if stored["meta"].get("command") and stored["meta"]["command"] != meta["command"]:
+            meta["command"] = f"{stored['meta']['command']}` then `{meta['command']} --resume"
+        if stored["meta"].get("commit") and stored["meta"]["commit"] != meta["commit"]:
+            meta["commit"] = f"{stored['meta']['commit']} then {meta['commit']}"
+        meta["shapes"] = [*stored["meta"].get("shapes", []), *(s for s in meta["shapes"]
+                                                             if s not in stored["meta"].get("shapes", []))]
     start = time.perf_counter()
     json_path.parent.mkdir(parents=True, exist_ok=True)
     meta["wall_seconds"] = before
