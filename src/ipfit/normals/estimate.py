@@ -13,8 +13,10 @@ from scipy.spatial import cKDTree
 
 from .._utils.numeric import row_norms, unit_rows_mask
 from .._utils.validation import as_points, check_int, error
-from .local import blocks, check_flag, check_workers, covariances, default_k, neighbours, pca_normals, standardise
+from .local import (blocks, check_flag, check_workers, covariances, default_k, flatness_of, neighbours,
+                    normal_confidence, pca, pca_normals, standardise)
 from .orient import orient_graph
+from .poles import pole_lines
 from .scale import noise_scale, orient_coarse
 
 __all__ = ["estimate_normals", "contour_normals"]
@@ -31,6 +33,13 @@ _CURVE_LINK_SLOPE = np.sin(np.radians(20.0))  # links across the curve: this clo
 # surfaces: on the apple, whose stem stands 4-6 mm from the dimple's wall, 4k and 8k both leave
 # the stem's lowest ring (24 points) flipped; 6k gets it right.
 _CURVE_REACH = 6
+# 3D points whose k nearest neighbours are a poor sample of a plane get the line of the largest
+# empty ball (poles.pole_lines): neighbours spread mostly along one direction (second spread below
+# _ROWS of the first: one or two rows of points), or not flat (least spread above _CURVED of the
+# second). A clean, evenly sampled surface has few: 1-2 % of the bunny, 4-8 % of the apple and
+# the duck; CAD meshes' vertices 40-100 %.
+_ROWS = 0.3
+_CURVED = 0.1
 
 
 def _refit_sampled_curves(points: NDArray, tree: cKDTree, idx: NDArray[np.intp], normals: NDArray,
@@ -129,7 +138,8 @@ def _refit_along_curve(points: NDArray, idx: NDArray[np.intp], normals: NDArray,
 
 
 def estimate_normals(points: ArrayLike, k: int | None = None, *, orient: bool = True,
-                     workers: int = -1, inliers: ArrayLike | None = None) -> NDArray[np.float64]:
+                     workers: int = -1, inliers: ArrayLike | None = None,
+                     return_confidence: bool = False):
     """Unit normals of a 2D or 3D point cloud by k-nearest-neighbour PCA.
 
     Two refinements of the plain fit, both where the k nearest neighbours are the wrong
@@ -180,28 +190,56 @@ def estimate_normals(points: ArrayLike, k: int | None = None, *, orient: bool = 
     True
     """
     pts = as_points(points, min_points=3)
+    return_confidence = check_flag(return_confidence, "return_confidence")
     if inliers is not None:
         mask = _check_inliers(inliers, len(pts))
         if not mask.all():
-            return _normals_of_inliers(pts, mask, k, orient, workers)
-    k = default_k(k, pts.shape[1], len(pts))
+            return _normals_of_inliers(pts, mask, k, orient, workers, return_confidence)
     orient = check_flag(orient, "orient")
     workers = check_workers(workers)
     pts = standardise(pts)
+    if k is not None:
+        default_k(k, pts.shape[1], len(pts))  # checked on the caller's points
+    # Coincident points (a mesh's vertices split per face) add nothing but fill the k nearest:
+    # the normals are estimated on the distinct points.
+    distinct, inverse = np.unique(pts, axis=0, return_inverse=True)
+    if len(distinct) < len(pts) and len(distinct) > pts.shape[1]:
+        normals, confidence = _estimate(distinct, k, orient, workers)
+        normals, confidence = normals[inverse.ravel()], confidence[inverse.ravel()]
+    else:
+        normals, confidence = _estimate(pts, k, orient, workers)
+    return (normals, confidence) if return_confidence else normals
+
+
+def _estimate(pts: NDArray, k, orient: bool, workers: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Normals and their confidence on standardised points (see estimate_normals)."""
+    k = default_k(k, pts.shape[1], len(pts))
     tree = cKDTree(pts)
     idx = neighbours(tree, k, workers)
-    normals, flatness = pca_normals(pts, idx)
+    normals, values = pca(pts, idx)
+    flatness = flatness_of(values)
     scaled = noise_scale(pts, tree, idx, flatness, workers)
     if scaled is not None:
         # Noise-dominated: the normals of wider neighbourhoods, oriented on a denoised,
         # coarser sample of the shape (see orient_coarse).
-        return orient_coarse(pts, tree, scaled, workers) if orient else scaled.normals
-    links = None
+        out = orient_coarse(pts, tree, scaled, workers) if orient else scaled.normals
+        return out, scaled.confidence
+    links = doubtful = None
     if pts.shape[1] == 2:
         _refit_along_curve(pts, idx, normals, flatness)
     else:
         links = _refit_sampled_curves(pts, tree, idx, normals, workers)
-    return orient_graph(pts, normals, idx, flatness, links, tree=tree) if orient else normals
+        # Where the k nearest points are a poor sample of a plane (on one or two rows, or not
+        # flat: sparse or uneven sampling, thin parts), the line with the largest empty ball.
+        ratio = values / np.maximum(values[:, 1:2], np.finfo(float).tiny)
+        doubtful = np.flatnonzero((values[:, 1] < _ROWS * values[:, 2]) | (ratio[:, 0] > _CURVED))
+        pole_lines(pts, tree, doubtful, normals, workers)
+    confidence = normal_confidence(pts, idx, normals)
+    if orient:
+        # The doubtful points are those of sparse or uneven sampling: their outside is also
+        # tested with large empty balls (poles.exterior_anchors), to seed the orientation.
+        normals = orient_graph(pts, normals, idx, flatness, links, tree=tree, exterior=doubtful)
+    return normals, confidence
 
 
 def _check_inliers(inliers: ArrayLike, n: int) -> NDArray[np.bool_]:
@@ -215,14 +253,16 @@ def _check_inliers(inliers: ArrayLike, n: int) -> NDArray[np.bool_]:
     return mask
 
 
-def _normals_of_inliers(points: NDArray, mask: NDArray[np.bool_], k, orient, workers) -> NDArray[np.float64]:
-    """Normals estimated on the inliers alone; each other point takes its nearest inlier's."""
+def _normals_of_inliers(points: NDArray, mask: NDArray[np.bool_], k, orient, workers, return_confidence):
+    """Normals estimated on the inliers alone; each other point takes its nearest inlier's (confidence 0)."""
     normals = np.empty(points.shape)
-    normals[mask] = estimate_normals(points[mask], k, orient=orient, workers=workers)
+    confidence = np.zeros(len(points))
+    normals[mask], confidence[mask] = estimate_normals(points[mask], k, orient=orient, workers=workers,
+                                                       return_confidence=True)
     std = standardise(points)  # a far stray's squared distance must not overflow
     _, nearest = cKDTree(std[mask]).query(std[~mask], workers=check_workers(workers))
     normals[~mask] = normals[mask][nearest]
-    return normals
+    return (normals, confidence) if return_confidence else normals
 
 
 def contour_normals(points: ArrayLike, *, closed: bool = True, span: int = 1) -> NDArray[np.float64]:

@@ -18,6 +18,7 @@ from scipy.spatial import ConvexHull, QhullError, cKDTree
 from .._utils.numeric import unit_rows, unit_rows_mask
 from .._utils.validation import as_matching, as_points, error
 from .local import argmax_per_group, blocks, check_workers, default_k, neighbours, standardise
+from .poles import exterior_anchors
 
 __all__ = ["orient_normals"]
 
@@ -84,8 +85,11 @@ def _edges(idx: NDArray[np.intp], links) -> tuple[NDArray[np.intp], NDArray[np.i
 
 def orient_graph(points: NDArray, normals: NDArray, idx: NDArray[np.intp], flatness: NDArray,
                  links: tuple[NDArray[np.intp], NDArray[np.intp]] | None = None, *,
-                 tree: cKDTree | None = None) -> NDArray[np.float64]:
-    """Signs of unit ``normals`` made consistent on the graph of ``idx`` (+ ``links``); see orient_normals."""
+                 tree: cKDTree | None = None, exterior: NDArray[np.intp] | None = None) -> NDArray[np.float64]:
+    """Signs of unit ``normals`` made consistent on the graph of ``idx`` (+ ``links``); see orient_normals.
+
+    ``exterior``: points (3D) tested as anchors touched by a large empty ball (poles.exterior_anchors).
+    """
     n = len(points)
     lo, hi = _edges(idx, links)
     tree = cKDTree(points) if tree is None else tree
@@ -103,7 +107,7 @@ def orient_graph(points: NDArray, normals: NDArray, idx: NDArray[np.intp], flatn
 
     # Anchors hang from one virtual node: the tree roots each branch at the anchor that reaches
     # it most cheaply, so one ambiguous link cannot flip everything behind it.
-    anchor, direction = _anchors(points, labels, ncomp)
+    anchor, direction = _anchors(points, labels, ncomp, normals, tree, exterior)
     anchor_cos = np.einsum("ij,ij->i", normals[anchor], direction)
     anchor_weight = np.maximum(1.0 - np.abs(anchor_cos), 0.0) + doubt[anchor] + _WEIGHT_FLOOR
     virtual = n
@@ -248,13 +252,17 @@ def _consistency(points: NDArray, normals: NDArray, i: NDArray, j: NDArray, *, w
     return (c, off) if with_off_plane else c
 
 
-def _anchors(points: NDArray, labels: NDArray, ncomp: int) -> tuple[NDArray[np.intp], NDArray[np.float64]]:
+def _anchors(points: NDArray, labels: NDArray, ncomp: int, normals: NDArray, tree: cKDTree,
+             exterior: NDArray[np.intp] | None) -> tuple[NDArray[np.intp], NDArray[np.float64]]:
     """Points with a known outward direction (unit vectors) on closed shapes.
 
     * The vertices of the convex hull: its facets are supporting planes, so the outward
       normal there is on the side of the mean of the adjacent facets' normals.
     * In each connected component, the point farthest from the component's centroid: the
       component lies in the ball through it, so its normal is along point − centroid.
+    * In 3D, those of ``exterior`` touched from one side only by an empty ball too large for
+      any solid the cloud bounds (:func:`~.poles.exterior_anchors`): the outside of concave
+      and sparsely sampled shapes, far from the hull.
     """
     dim = points.shape[1]
     counts = np.bincount(labels, minlength=ncomp).astype(float)
@@ -279,6 +287,10 @@ def _anchors(points: NDArray, labels: NDArray, ncomp: int) -> tuple[NDArray[np.i
         acc = np.stack([np.bincount(corners, facet[:, j], len(candidates)) for j in range(dim)], axis=1)
         idx_parts.insert(0, candidates[hull.vertices])
         dir_parts.insert(0, acc[hull.vertices])
+    if dim == 3 and exterior is not None:
+        touched, outward = exterior_anchors(points, tree, normals, exterior, 1)
+        idx_parts.append(touched)
+        dir_parts.append(outward)
     idx = np.concatenate(idx_parts)
     dirs = np.concatenate(dir_parts)
     dirs, ok = unit_rows_mask(dirs)
