@@ -43,7 +43,7 @@ _CURVED = 0.1
 
 
 def _refit_sampled_curves(points: NDArray, tree: cKDTree, idx: NDArray[np.intp], normals: NDArray,
-                          workers: int) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+                          workers: int) -> tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.intp]]:
     """Normals across the curves of anisotropically sampled surfaces (3D), in place.
 
     A lathe or scan-line model samples its surface densely along curves (rings of a stem,
@@ -54,7 +54,7 @@ def _refit_sampled_curves(points: NDArray, tree: cKDTree, idx: NDArray[np.intp],
     (reliable from the nearest few points); within the plane perpendicular to t, it is the
     direction of least spread of a neighbourhood wide enough to reach the neighbouring curves.
 
-    Returns links for the orientation graph (whose k-nearest edges stay on the curve): from each
+    Returns the refitted points, and links for the orientation graph (whose k-nearest edges stay on the curve): from each
     refitted point to its nearest point on either side across the curve, near its tangent plane
     (within 20°): the orientation then follows the surface the normal was measured on.
     """
@@ -62,14 +62,14 @@ def _refit_sampled_curves(points: NDArray, tree: cKDTree, idx: NDArray[np.intp],
     ks = min(_CURVE_K, k)
     none = np.empty(0, np.intp)
     if ks < 3 or n <= k:
-        return none, none
+        return none, none, none
     values = np.empty((n, 3))
     for rows in blocks(n, ks):
         values[rows] = np.linalg.eigvalsh(covariances(points, idx[rows, :ks]))
     values = np.clip(values, 0.0, None)
     curve = np.flatnonzero(values[:, 1] < _CURVE_RATIO ** 2 * values[:, 2])
     if len(curve) == 0:
-        return none, none
+        return none, none, none
     link_lo, link_hi = [], []
     kb = min(_CURVE_REACH * k, n)
     for rows in blocks(len(curve), kb):
@@ -95,7 +95,7 @@ def _refit_sampled_curves(points: NDArray, tree: cKDTree, idx: NDArray[np.intp],
             first = np.argmax(cand, axis=1)
             link_lo.append(at[has])
             link_hi.append(wide[has, first[has]])
-    return np.concatenate(link_lo), np.concatenate(link_hi)
+    return curve, np.concatenate(link_lo), np.concatenate(link_hi)
 
 
 def _refit_along_curve(points: NDArray, idx: NDArray[np.intp], normals: NDArray, flatness: NDArray) -> None:
@@ -228,12 +228,15 @@ def _estimate(pts: NDArray, k, orient: bool, workers: int) -> tuple[NDArray[np.f
     if pts.shape[1] == 2:
         _refit_along_curve(pts, idx, normals, flatness)
     else:
-        links = _refit_sampled_curves(pts, tree, idx, normals, workers)
+        curve, *links = _refit_sampled_curves(pts, tree, idx, normals, workers)
         # Where the k nearest points are a poor sample of a plane (on one or two rows, or not
         # flat: sparse or uneven sampling, thin parts), the line with the largest empty ball.
         ratio = values / np.maximum(values[:, 1:2], np.finfo(float).tiny)
-        doubtful = np.flatnonzero((values[:, 1] < _ROWS * values[:, 2]) | (ratio[:, 0] > _CURVED))
-        pole_lines(pts, tree, doubtful, normals, workers)
+        doubtful = (values[:, 1] < _ROWS * values[:, 2]) | (ratio[:, 0] > _CURVED)
+        doubtful = np.flatnonzero(doubtful)
+        refitted = np.zeros(len(pts), dtype=bool)
+        refitted[curve] = True
+        pole_lines(pts, tree, doubtful, normals, workers, keep=refitted)
     confidence = normal_confidence(pts, idx, normals)
     if orient:
         # The doubtful points are those of sparse or uneven sampling: their outside is also

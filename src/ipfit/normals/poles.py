@@ -39,6 +39,7 @@ _CROSS = 4  # and the planes through the point and two of its _CROSS nearest oth
 # A ball touching the point reaches past its nearest points when its radius is above half the
 # farthest one's distance: it is then "full", and fulls are compared by their angular margin.
 _FULL = 10.0
+_KEEP = 0.5  # a refitted line stays if its ball reaches half the way (see pole_lines)
 
 # Exterior balls: radius a third of the bounding box's diagonal D. The largest ball inside a solid
 # is at most as wide as its bounding box's shortest side, at most D/√3: radius ≤ 0.289 D.
@@ -92,11 +93,14 @@ def _ball_scores(step: NDArray, sq: NDArray, line: NDArray) -> NDArray[np.float6
     return np.where(np.abs(line).sum(axis=1) > 0, score, -np.inf)
 
 
-def pole_lines(points: NDArray, tree: cKDTree, rows: NDArray[np.intp], normals: NDArray, workers: int) -> None:
+def pole_lines(points: NDArray, tree: cKDTree, rows: NDArray[np.intp], normals: NDArray, workers: int,
+               keep: NDArray[np.bool_] | None = None) -> None:
     """Replace the normals of ``rows`` by the candidate line with the largest empty ball, in place.
 
     3D points only. The current normal is one of the candidates, so a point keeps it unless
-    another line leaves a larger empty ball (see the module notes).
+    another line leaves a larger empty ball (see the module notes). Points marked in ``keep``
+    (a mask over all points) keep it also where its ball only nearly reaches past their
+    neighbours (half the way: _KEEP).
     """
     n = len(points)
     reach = min(_REACH, n)
@@ -110,6 +114,11 @@ def pole_lines(points: NDArray, tree: cKDTree, rows: NDArray[np.intp], normals: 
         step = points[wide[:, 1:]] - points[at][:, None, :]
         sq = np.einsum("ikj,ikj->ik", step, step)
         scores = np.stack([_ball_scores(step, sq, c) for c in cands])
+        # A kept line whose ball nearly reaches past the neighbours stays: the margin prefers
+        # lines pointing away from one-sided neighbourhoods (the end of a sampled tube, whose
+        # surface goes on beyond the neighbours), which only farther points could refute.
+        if keep is not None:
+            scores[0] = np.where(keep[at] & (scores[0] >= _KEEP), 2.0 * _FULL, scores[0])
         best = np.argmax(scores, axis=0)
         normals[at] = cands[best, np.arange(len(at))]
 
