@@ -12,10 +12,9 @@ the point, on either side, among its nearest points; where several reach past th
 one deepest inside the cone of empty directions (Mitra & Nguyen 2003 choose among neighbourhood
 sizes by flatness instead: on these clouds the flattest plane is often the wrong one).
 
-:func:`exterior_anchors` finds points whose outward side is certain: an empty ball too large to
-fit inside any solid the cloud can bound (a radius above 0.29 of the bounding box's diagonal)
-touches them from one side only. They seed the orientation (:mod:`.orient`) far beyond the
-convex hull's vertices.
+:func:`exterior_anchors` finds points whose outward side is plain: a large empty ball touches them
+from one side, and no small one fits on the other. They seed the orientation (:mod:`.orient`) far
+beyond the convex hull's vertices.
 """
 
 from __future__ import annotations
@@ -41,9 +40,10 @@ _CROSS = 4  # and the planes through the point and two of its _CROSS nearest oth
 _FULL = 10.0
 _KEEP = 0.5  # a refitted line stays if its ball reaches half the way (see pole_lines)
 
-# Exterior balls: radius a third of the bounding box's diagonal D. The largest ball inside a solid
-# is at most as wide as its bounding box's shortest side, at most D/√3: radius ≤ 0.289 D.
-_EXTERIOR = 1.0 / 3.0
+# Exterior anchors (see exterior_anchors): an empty ball of radius _OUTSIDE × the bounding box's
+# diagonal on one side, none of _CROWDED × it on the other.
+_OUTSIDE = 1.0 / 6.0
+_CROWDED = 1.0 / 24.0
 _TILT = np.radians(30.0)  # the ball may touch along the line or tilted this far from it, ...
 _AZIMUTHS = 4  # ... in these many directions
 # Points tested at most (spread over them): enough anchors in bounded time. A query this far from
@@ -131,14 +131,20 @@ def _frame(line: NDArray) -> tuple[NDArray, NDArray]:
 
 def exterior_anchors(points: NDArray, tree: cKDTree, normals: NDArray, rows: NDArray[np.intp],
                      workers: int) -> tuple[NDArray[np.intp], NDArray[np.float64]]:
-    """Points touched from one side only by an empty ball of radius D/3, and that side (3D).
+    """Points whose outside is plain: a large empty ball on one side, a crowd on the other (3D).
 
-    D is the bounding box's diagonal. No ball that large fits inside a solid the cloud bounds,
-    so the side it touches from is outside; along a normal line of a closed, not too sparsely
-    sampled surface it is certain. Each point is tested along its line (either way) and tilted
-    30° from it in four directions, so that a normal a few degrees off still finds its ball; the
-    direction returned is the mean of the empty ones. Open surfaces, touched from both sides,
-    give no anchor. Only ``rows`` are tested, at most _EXTERIOR_MOST of them, spread over them.
+    A point is an anchor where an empty ball of radius D/6 (D: the bounding box's diagonal)
+    touches it from one side of its normal line while no ball of radius D/24 fits on the other:
+    the large ball is outside, the other side is inside a thin or crowded part. Each side is
+    tried along the line and tilted 30° from it in four directions, so that a normal a few
+    degrees off still finds its ball; the direction returned is the mean of the empty ones.
+    Open surfaces, empty on both sides, give no anchor. Only ``rows`` are tested, at most
+    _EXTERIOR_MOST of them, spread over them.
+
+    No ball of radius D/3 fits inside a solid the cloud bounds (the largest ball inside a box
+    has radius at most D/(2√3) = 0.289 D); D/6 against D/24 is an empirical rule: on the 14
+    development meshes, with their own normals and the exact largest empty balls, it marks
+    7-55 % of the vertices (D/3 on both sides: 4-52 %) and never the wrong side.
     """
     none = (np.empty(0, np.intp), np.empty((0, 3)))
     diagonal = float(np.linalg.norm(np.ptp(points, axis=0)))
@@ -151,9 +157,8 @@ def exterior_anchors(points: NDArray, tree: cKDTree, normals: NDArray, rows: NDA
     t1, t2 = _frame(line)
     directions = [line] + [np.cos(_TILT) * line + np.sin(_TILT) * (np.cos(a) * t1 + np.sin(a) * t2)
                            for a in 2.0 * np.pi * np.arange(_AZIMUTHS) / _AZIMUTHS]
-    radius = _EXTERIOR * diagonal
-    sides = []
-    for sign in (1.0, -1.0):
+
+    def empty_side(radius: float, sign: float) -> tuple[NDArray[np.bool_], NDArray[np.float64]]:
         total = np.zeros_like(p)
         found = np.zeros(len(p), dtype=bool)
         for d in directions:
@@ -161,8 +166,11 @@ def exterior_anchors(points: NDArray, tree: cKDTree, normals: NDArray, rows: NDA
             empty = dist >= radius * (1.0 - 1e-9)  # the point itself lies on the ball
             total[empty] += sign * d[empty]
             found |= empty
-        sides.append((found, total))
-    (up, up_dir), (down, down_dir) = sides
+        return found, total
+
+    (up, up_dir), (down, down_dir) = (empty_side(_OUTSIDE * diagonal, sign) for sign in (1.0, -1.0))
+    up &= ~empty_side(_CROWDED * diagonal, -1.0)[0]
+    down &= ~empty_side(_CROWDED * diagonal, 1.0)[0]
     one = up ^ down
     direction, ok = unit_rows_mask(np.where(up[:, None], up_dir, down_dir)[one])
     return test[one][ok].astype(np.intp), direction[ok]
