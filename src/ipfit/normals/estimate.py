@@ -42,7 +42,7 @@ _ROWS = 0.3
 _CURVED = 0.1
 # Where at least this share is doubtful (CAD meshes: 47-100 %; the apple 21 %, the duck 14 %), the
 # neighbour graph's links are unreliable too (they cross thin parts): the orientation also takes
-# the winding number's vote (orient._winding_votes).
+# anchors from large empty balls and the winding number's vote (orient._winding_votes).
 _UNEVEN = 0.25
 
 
@@ -206,17 +206,30 @@ def estimate_normals(points: ArrayLike, k: int | None = None, *, orient: bool = 
         default_k(k, pts.shape[1], len(pts))  # checked on the caller's points
     # Coincident points (a mesh's vertices split per face) add nothing but fill the k nearest:
     # the normals are estimated on the distinct points.
-    distinct, inverse = np.unique(pts, axis=0, return_inverse=True)
+    distinct, inverse = _distinct(pts)
     if len(distinct) < len(pts) and len(distinct) > pts.shape[1]:
-        normals, confidence = _estimate(distinct, k, orient, workers)
-        normals, confidence = normals[inverse.ravel()], confidence[inverse.ravel()]
+        normals, confidence = _estimate(distinct, k, orient, workers, return_confidence)
+        normals, confidence = normals[inverse], confidence[inverse]
     else:
-        normals, confidence = _estimate(pts, k, orient, workers)
+        normals, confidence = _estimate(pts, k, orient, workers, return_confidence)
     return (normals, confidence) if return_confidence else normals
 
 
-def _estimate(pts: NDArray, k, orient: bool, workers: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Normals and their confidence on standardised points (see estimate_normals)."""
+def _distinct(points: NDArray) -> tuple[NDArray, NDArray[np.intp]]:
+    """The distinct rows (in coordinate order if any repeat) and each row's index among them."""
+    order = np.lexsort(points.T[::-1])
+    repeat = (points[order][1:] == points[order][:-1]).all(axis=1)
+    if not repeat.any():
+        return points, np.arange(len(points))
+    group = np.concatenate([[0], np.cumsum(~repeat)])
+    inverse = np.empty(len(points), dtype=np.intp)
+    inverse[order] = group
+    return points[order][np.concatenate([[True], ~repeat])], inverse
+
+
+def _estimate(pts: NDArray, k, orient: bool, workers: int,
+              want_confidence: bool) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Normals and (if wanted, else NaN) their confidence on standardised points (see estimate_normals)."""
     k = default_k(k, pts.shape[1], len(pts))
     tree = cKDTree(pts)
     idx = neighbours(tree, k, workers)
@@ -241,12 +254,13 @@ def _estimate(pts: NDArray, k, orient: bool, workers: int) -> tuple[NDArray[np.f
         refitted = np.zeros(len(pts), dtype=bool)
         refitted[curve] = True
         pole_lines(pts, tree, doubtful, normals, workers, keep=refitted)
-    confidence = normal_confidence(pts, idx, normals)
+    confidence = normal_confidence(pts, idx, normals) if want_confidence else np.full(len(pts), np.nan)
     if orient:
-        # The doubtful points are those of sparse or uneven sampling: their outside is also
-        # tested with large empty balls (poles.exterior_anchors), to seed the orientation.
-        many = doubtful is not None and len(doubtful) >= _UNEVEN * len(pts)
-        normals = orient_graph(pts, normals, idx, flatness, links, tree=tree, exterior=doubtful, winding=many)
+        # Sparse or unevenly sampled clouds: the doubtful points' outside is also tested with
+        # large empty balls (poles.exterior_anchors), and the winding number votes.
+        uneven = doubtful is not None and len(doubtful) >= _UNEVEN * len(pts)
+        normals = orient_graph(pts, normals, idx, flatness, links, tree=tree,
+                               exterior=doubtful if uneven else None, winding=uneven)
     return normals, confidence
 
 

@@ -155,6 +155,17 @@ def normal_confidence(points: NDArray, idx: NDArray[np.intp], normals: NDArray) 
     return np.clip(np.nan_to_num(confidence), 0.0, 1.0)
 
 
+def spread(points: NDArray, most: int) -> NDArray[np.intp]:
+    """At most ``most`` indices of ``points``, every step-th in coordinate order, ascending.
+
+    Spread over the cloud, and independent of the input order.
+    """
+    n = len(points)
+    if n <= most:
+        return np.arange(n)
+    return np.sort(np.lexsort(points.T[::-1])[::-(-n // most)])
+
+
 def argmax_per_group(values: NDArray, labels: NDArray, ngroups: int) -> NDArray[np.intp]:
     order = np.lexsort((values, labels))
     last = np.cumsum(np.bincount(labels, minlength=ngroups)) - 1

@@ -23,8 +23,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
-from .._utils.numeric import unit_rows_mask
-from .local import blocks, covariances, neighbours
+from .._utils.numeric import row_norms, unit_rows_mask
+from .local import blocks, covariances, neighbours, spread
 
 # The nearest points that bound the empty balls (the point itself included). On the development
 # meshes 48 gets most of the full Voronoi poles' gain (24: half; 96: no more), at 48 dot products
@@ -112,6 +112,10 @@ def pole_lines(points: NDArray, tree: cKDTree, rows: NDArray[np.intp], normals: 
         wide[:, 0] = at  # the point itself first, even among coincident points
         cands = _candidates(points, wide, normals[at])
         step = points[wide[:, 1:]] - points[at][:, None, :]
+        # each neighbourhood at its own scale (the scores do not depend on it): a far outlier's
+        # squared offsets must not overflow
+        big = np.abs(step).max(axis=(1, 2))
+        step /= np.where(big > 0, big, 1.0)[:, None, None]
         sq = np.einsum("ikj,ikj->ik", step, step)
         scores = np.stack([_ball_scores(step, sq, c) for c in cands])
         # A kept line whose ball nearly reaches past the neighbours stays: the margin prefers
@@ -147,12 +151,11 @@ def exterior_anchors(points: NDArray, tree: cKDTree, normals: NDArray, rows: NDA
     7-55 % of the vertices (D/3 on both sides: 4-52 %) and never the wrong side.
     """
     none = (np.empty(0, np.intp), np.empty((0, 3)))
-    diagonal = float(np.linalg.norm(np.ptp(points, axis=0)))
+    diagonal = float(row_norms(np.ptp(points, axis=0)[None, :])[0])
     if len(points) < 4 or len(rows) == 0 or not diagonal > 0:
         return none
     test = np.asarray(rows, dtype=np.intp)
-    if len(test) > _EXTERIOR_MOST:  # every step-th in coordinate order: independent of the input order
-        test = np.sort(test[np.lexsort(points[test].T[::-1])[::-(-len(test) // _EXTERIOR_MOST)]])
+    test = test[spread(points[test], _EXTERIOR_MOST)]
     p, line = points[test], normals[test]
     t1, t2 = _frame(line)
     directions = [line] + [np.cos(_TILT) * line + np.sin(_TILT) * (np.cos(a) * t1 + np.sin(a) * t2)
