@@ -198,7 +198,8 @@ def _winding_votes(points: NDArray, oriented: NDArray, piece: NDArray[np.intp], 
     that they do not cross a thin part's other side. Unlike the neighbour links, the winding
     number sees the whole shape: a blade between blades, a leg under a body. A piece whose
     mean vote is negative is inside out. Open surfaces give weak, mixed votes (requiring a
-    clearly negative vote, a quarter of the jump, only lost flips on the development meshes). Returns the mean vote of each piece's queried points (0 where none is queried).
+    clearly negative vote, a quarter of the jump, only lost flips on the development meshes).
+    Returns the mean vote of each piece's queried points (0 where none is queried).
     """
     near = points[idx[:, 1:]] - points[:, None, :]
     sq = np.einsum("ikj,ikj->ik", near, near)

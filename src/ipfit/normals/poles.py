@@ -53,7 +53,7 @@ _EXTERIOR_MOST = 4000
 
 def _candidates(points: NDArray, wide: NDArray[np.intp], current: NDArray) -> NDArray[np.float64]:
     """Candidate normal lines of each point (rows of ``wide``, nearest first): (C, n, 3)."""
-    n, reach = wide.shape
+    reach = wide.shape[1]
     out = [current]
     at = points[wide[:, 0]]
     plane_sizes = {min(size, reach) for size in _SIZES}
