@@ -121,8 +121,10 @@ def pole_lines(points: NDArray, tree: cKDTree, rows: NDArray[np.intp], normals: 
         # A kept line whose ball nearly reaches past the neighbours stays: the margin prefers
         # lines pointing away from one-sided neighbourhoods (the end of a sampled tube, whose
         # surface goes on beyond the neighbours), which only farther points could refute.
+        stays = scores[0] >= _FULL
         if keep is not None:
-            scores[0] = np.where(keep[at] & (scores[0] >= _KEEP), 2.0 * _FULL, scores[0])
+            stays |= keep[at] & (scores[0] >= _KEEP)
+        scores[0] = np.where(stays, 2.0 * _FULL, scores[0])
         best = np.argmax(scores, axis=0)
         normals[at] = cands[best, np.arange(len(at))]
 
