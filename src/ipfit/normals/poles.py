@@ -163,19 +163,23 @@ def exterior_anchors(points: NDArray, tree: cKDTree, normals: NDArray, rows: NDA
     directions = [line] + [np.cos(_TILT) * line + np.sin(_TILT) * (np.cos(a) * t1 + np.sin(a) * t2)
                            for a in 2.0 * np.pi * np.arange(_AZIMUTHS) / _AZIMUTHS]
 
-    def empty_side(radius: float, sign: float) -> tuple[NDArray[np.bool_], NDArray[np.float64]]:
+    def empty_side(radius: float, sign: float, gap: float) -> tuple[NDArray[np.bool_], NDArray[np.float64]]:
+        """Whether a ball of ``radius``, ``gap`` off the point along some direction, is empty."""
         total = np.zeros_like(p)
         found = np.zeros(len(p), dtype=bool)
         for d in directions:
-            dist, _ = tree.query(p + sign * radius * d, k=1, workers=workers)
-            empty = dist >= radius * (1.0 - 1e-9)  # the point itself lies on the ball
+            dist, _ = tree.query(p + sign * (radius + gap) * d, k=1, workers=workers)
+            empty = dist >= radius * (1.0 - 1e-9)  # with no gap, the point itself lies on the ball
             total[empty] += sign * d[empty]
             found |= empty
         return found, total
 
-    (up, up_dir), (down, down_dir) = (empty_side(_OUTSIDE * diagonal, sign) for sign in (1.0, -1.0))
-    up &= ~empty_side(_CROWDED * diagonal, -1.0)[0]
-    down &= ~empty_side(_CROWDED * diagonal, 1.0)[0]
+    # The large ball touches the point; the small one may stand a sixteenth of its radius off, so
+    # that a neighbour standing a little proud of the point does not make a side look crowded.
+    outside, crowded = _OUTSIDE * diagonal, _CROWDED * diagonal
+    (up, up_dir), (down, down_dir) = (empty_side(outside, sign, 0.0) for sign in (1.0, -1.0))
+    up &= ~empty_side(crowded, -1.0, crowded / 16.0)[0]
+    down &= ~empty_side(crowded, 1.0, crowded / 16.0)[0]
     one = up ^ down
     direction, ok = unit_rows_mask(np.where(up[:, None], up_dir, down_dir)[one])
     return test[one][ok].astype(np.intp), direction[ok]
