@@ -166,11 +166,11 @@ def test_apple_against_its_reference_normals(which):
 def test_duck_against_face_normals():
     """Median below 10°; under 1% flipped wherever the face normals point out of the solid.
 
-    Over all 5,482 vertices 1.5% are flipped (84). 62 of them are among the 116 vertices
+    Over all 5,482 vertices 1.9% are flipped (104). 90 of them are among the 116 vertices
     (2.1%) where the mesh passes through itself at the beak (see test_solid): there the face
     normals point from one part of the solid into another, and an orientation has no right
-    answer. Of the 5,366 vertices whose face normals do point outward, 22 are flipped (0.41%),
-    all within 2 mm of that fold.
+    answer. Of the 5,366 vertices whose face normals do point outward, 14 are flipped (0.26%;
+    22 before the empty-ball lines of issue 30), all within 1 mm of that fold.
     """
     points, reference = face_normals("duck")
     outward = outward_vertices(points, bundled.dataset_faces("duck"))
@@ -178,7 +178,7 @@ def test_duck_against_face_normals():
     assert agreement.median_angle < 10
     assert outward.mean() > 0.97
     assert agreement.flipped[outward].mean() < 0.01
-    assert agreement.flipped_fraction < 0.016  # over all vertices: pins the figure
+    assert agreement.flipped_fraction < 0.02  # over all vertices: pins the figure
     far = cKDTree(points[~outward]).query(points[agreement.flipped & outward])[0] > 0.002
     assert not far.any()
 

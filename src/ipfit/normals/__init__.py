@@ -10,11 +10,15 @@ an ordered 2D contour, and :func:`normal_agreement` compares two sets of normals
 
 Modules, in the order a point cloud goes through them:
 
-* :mod:`.local` -- k-nearest neighbourhoods and their batched PCA (normal + flatness);
+* :mod:`.local` -- k-nearest neighbourhoods and their batched PCA (normal + flatness), the
+  normals' confidence;
 * :mod:`.estimate` -- :func:`estimate_normals` and the refits where the nearest neighbours
   mislead (thin parts and tips in 2D, anisotropic sampling in 3D); :func:`contour_normals`;
+* :mod:`.poles` -- sparse or uneven 3D samples: the line with the largest empty ball (a local
+  Voronoi pole), and the points whose outside a large empty ball shows;
 * :mod:`.scale` -- noisy data: per-point neighbourhood size, orientation on a coarser sample;
-* :mod:`.orient` -- :func:`orient_normals`: sign propagation on the neighbour graph;
+* :mod:`.orient` -- :func:`orient_normals`: sign propagation on the neighbour graph (and, for
+  sparse clouds, the winding number's vote);
 * :mod:`.compare` -- :func:`normal_agreement`.
 """
 

@@ -13,8 +13,21 @@ from scipy.spatial import cKDTree
 
 from .._utils.numeric import row_norms, unit_rows_mask
 from .._utils.validation import as_points, check_int, error
-from .local import blocks, check_flag, check_workers, covariances, default_k, neighbours, pca_normals, standardise
+from .local import (
+    blocks,
+    check_flag,
+    check_workers,
+    covariances,
+    default_k,
+    flatness_of,
+    neighbours,
+    normal_confidence,
+    pca,
+    pca_normals,
+    standardise,
+)
 from .orient import orient_graph
+from .poles import pole_lines
 from .scale import noise_scale, orient_coarse
 
 __all__ = ["estimate_normals", "contour_normals"]
@@ -31,10 +44,21 @@ _CURVE_LINK_SLOPE = np.sin(np.radians(20.0))  # links across the curve: this clo
 # surfaces: on the apple, whose stem stands 4-6 mm from the dimple's wall, 4k and 8k both leave
 # the stem's lowest ring (24 points) flipped; 6k gets it right.
 _CURVE_REACH = 6
+# 3D points whose k nearest neighbours are a poor sample of a plane get the line of the largest
+# empty ball (poles.pole_lines): neighbours spread mostly along one direction (second spread below
+# _ROWS of the first: one or two rows of points), or not flat (least spread above _CURVED of the
+# second). A finely sampled scan has few: 2 % of the bunny, 8 % of bunny_res2, 14 % of the duck,
+# 21 % of the apple (its stem's rings); the vertices of the development CAD meshes 47-100 %.
+_ROWS = 0.3
+_CURVED = 0.1
+# Where at least this share is doubtful (CAD meshes: 47-100 %; the apple 21 %, the duck 14 %), the
+# neighbour graph's links are unreliable too (they cross thin parts): the orientation also takes
+# anchors from large empty balls and the winding number's vote (orient._winding_votes).
+_UNEVEN = 0.25
 
 
 def _refit_sampled_curves(points: NDArray, tree: cKDTree, idx: NDArray[np.intp], normals: NDArray,
-                          workers: int) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+                          workers: int) -> tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.intp]]:
     """Normals across the curves of anisotropically sampled surfaces (3D), in place.
 
     A lathe or scan-line model samples its surface densely along curves (rings of a stem,
@@ -45,22 +69,23 @@ def _refit_sampled_curves(points: NDArray, tree: cKDTree, idx: NDArray[np.intp],
     (reliable from the nearest few points); within the plane perpendicular to t, it is the
     direction of least spread of a neighbourhood wide enough to reach the neighbouring curves.
 
-    Returns links for the orientation graph (whose k-nearest edges stay on the curve): from each
-    refitted point to its nearest point on either side across the curve, near its tangent plane
-    (within 20°): the orientation then follows the surface the normal was measured on.
+    Returns the refitted points, and links for the orientation graph (whose k-nearest edges
+    stay on the curve): from each refitted point to its nearest point on either side across
+    the curve, near its tangent plane (within 20°): the orientation then follows the surface
+    the normal was measured on.
     """
     n, k = idx.shape
     ks = min(_CURVE_K, k)
     none = np.empty(0, np.intp)
     if ks < 3 or n <= k:
-        return none, none
+        return none, none, none
     values = np.empty((n, 3))
     for rows in blocks(n, ks):
         values[rows] = np.linalg.eigvalsh(covariances(points, idx[rows, :ks]))
     values = np.clip(values, 0.0, None)
     curve = np.flatnonzero(values[:, 1] < _CURVE_RATIO ** 2 * values[:, 2])
     if len(curve) == 0:
-        return none, none
+        return none, none, none
     link_lo, link_hi = [], []
     kb = min(_CURVE_REACH * k, n)
     for rows in blocks(len(curve), kb):
@@ -86,7 +111,7 @@ def _refit_sampled_curves(points: NDArray, tree: cKDTree, idx: NDArray[np.intp],
             first = np.argmax(cand, axis=1)
             link_lo.append(at[has])
             link_hi.append(wide[has, first[has]])
-    return np.concatenate(link_lo), np.concatenate(link_hi)
+    return curve, np.concatenate(link_lo), np.concatenate(link_hi)
 
 
 def _refit_along_curve(points: NDArray, idx: NDArray[np.intp], normals: NDArray, flatness: NDArray) -> None:
@@ -129,15 +154,26 @@ def _refit_along_curve(points: NDArray, idx: NDArray[np.intp], normals: NDArray,
 
 
 def estimate_normals(points: ArrayLike, k: int | None = None, *, orient: bool = True,
-                     workers: int = -1, inliers: ArrayLike | None = None) -> NDArray[np.float64]:
+                     workers: int = -1, inliers: ArrayLike | None = None,
+                     return_confidence: bool = False):
     """Unit normals of a 2D or 3D point cloud by k-nearest-neighbour PCA.
 
-    Two refinements of the plain fit, both where the k nearest neighbours are the wrong
-    sample of the shape: in 2D each point is refitted on its neighbours *along* the curve
-    (see :func:`_refit_along_curve`), so that the two sides of a thin part or of a sharp tip
-    do not mix; in 3D, points whose nearest neighbours all lie on one sampled curve (rings,
-    scan lines farther apart than the samples along them) get a normal across that curve
-    (see :func:`_refit_sampled_curves`).
+    Refinements of the plain fit where the k nearest neighbours are the wrong sample of the
+    shape: in 2D each point is refitted on its neighbours *along* the curve (see
+    :func:`_refit_along_curve`), so that the two sides of a thin part or of a sharp tip do not
+    mix; in 3D, points whose nearest neighbours all lie on one sampled curve (rings, scan lines
+    farther apart than the samples along them) get a normal across that curve (see
+    :func:`_refit_sampled_curves`), and points whose neighbours are a poor sample of a plane
+    (one or two rows of points, creases, thin parts: the vertices of CAD meshes, few on flat
+    panels and many at details) get, among several candidate lines, the one that leaves the
+    largest empty ball touching the point, a local Voronoi pole (see
+    :func:`~ipfit.normals.poles.pole_lines`). Coincident points are estimated once.
+
+    On such sparse or uneven 3D clouds (a quarter of the points or more with a poor plane) the
+    orientation also starts from the points a large empty ball touches from one side only
+    (:func:`~ipfit.normals.poles.exterior_anchors`) and flips the pieces that the generalized
+    winding number of the rest says are inside out: a thin part's two sides sampled more
+    coarsely than it is thick defeat the neighbour links alone.
 
     Noisy data (noise wider than the k nearest neighbours) are detected and handled apart:
     each point's neighbourhood is grown to the scale where it looks flattest (up to 32k
@@ -163,10 +199,20 @@ def estimate_normals(points: ArrayLike, k: int | None = None, *, orient: bool = 
         The normals are estimated and oriented on those alone, so that a stray point can neither
         tilt nor flip a neighbourhood; every other point takes the normal of its nearest inlier.
         At least 3 inliers. None (the default): every point is one.
+    return_confidence : bool
+        Also return how well each point's neighbourhood supports its normal line (see below).
 
     Returns
     -------
-    (N, D) array of unit normals.
+    normals : (N, D) array of unit normals.
+    confidence : (N,) array in [0, 1], only with ``return_confidence=True``
+        1 − (spread of the neighbours along the normal) / (their least spread across it), on
+        the k nearest points (on noisy data, on the neighbourhood the normal was fitted on):
+        near 1 where the neighbours lie on a plane (a line in 2D) through the normal's foot;
+        near 0 where they spread as much along the normal as across it (noise, a crease, both
+        sides of a thin part) or lie on one row (3D: no plane is determined), so the line may
+        be off; 0 for the points outside ``inliers``. A fit can downweight the normals of
+        points with low confidence. It says nothing of the sign.
 
     Notes
     -----
@@ -178,30 +224,79 @@ def estimate_normals(points: ArrayLike, k: int | None = None, *, orient: bool = 
     >>> pts, true, _ = circle(100)
     >>> bool((estimate_normals(pts) * true).sum(axis=1).min() > 0.99)
     True
+    >>> normals, confidence = estimate_normals(pts, return_confidence=True)
+    >>> bool(confidence.min() > 0.99)
+    True
     """
     pts = as_points(points, min_points=3)
+    return_confidence = check_flag(return_confidence, "return_confidence")
     if inliers is not None:
         mask = _check_inliers(inliers, len(pts))
         if not mask.all():
-            return _normals_of_inliers(pts, mask, k, orient, workers)
-    k = default_k(k, pts.shape[1], len(pts))
+            return _normals_of_inliers(pts, mask, k, orient, workers, return_confidence)
     orient = check_flag(orient, "orient")
     workers = check_workers(workers)
     pts = standardise(pts)
+    if k is not None:
+        default_k(k, pts.shape[1], len(pts))  # checked on the caller's points
+    # Coincident points (a mesh's vertices split per face) add nothing but fill the k nearest:
+    # the normals are estimated on the distinct points.
+    distinct, inverse = _distinct(pts)
+    if len(distinct) < len(pts) and len(distinct) > pts.shape[1]:
+        normals, confidence = _estimate(distinct, k, orient, workers, return_confidence)
+        normals, confidence = normals[inverse], confidence[inverse]
+    else:
+        normals, confidence = _estimate(pts, k, orient, workers, return_confidence)
+    return (normals, confidence) if return_confidence else normals
+
+
+def _distinct(points: NDArray) -> tuple[NDArray, NDArray[np.intp]]:
+    """The distinct rows (in coordinate order if any repeat) and each row's index among them."""
+    order = np.lexsort(points.T[::-1])
+    repeat = (points[order][1:] == points[order][:-1]).all(axis=1)
+    if not repeat.any():
+        return points, np.arange(len(points))
+    group = np.concatenate([[0], np.cumsum(~repeat)])
+    inverse = np.empty(len(points), dtype=np.intp)
+    inverse[order] = group
+    return points[order][np.concatenate([[True], ~repeat])], inverse
+
+
+def _estimate(pts: NDArray, k, orient: bool, workers: int,
+              want_confidence: bool) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Normals and (if wanted, else NaN) their confidence on standardised points (see estimate_normals)."""
+    k = default_k(k, pts.shape[1], len(pts))
     tree = cKDTree(pts)
     idx = neighbours(tree, k, workers)
-    normals, flatness = pca_normals(pts, idx)
+    normals, values = pca(pts, idx)
+    flatness = flatness_of(values)
     scaled = noise_scale(pts, tree, idx, flatness, workers)
     if scaled is not None:
         # Noise-dominated: the normals of wider neighbourhoods, oriented on a denoised,
         # coarser sample of the shape (see orient_coarse).
-        return orient_coarse(pts, tree, scaled, workers) if orient else scaled.normals
-    links = None
+        out = orient_coarse(pts, tree, scaled, workers) if orient else scaled.normals
+        return out, scaled.confidence
+    links: tuple[NDArray[np.intp], NDArray[np.intp]] | None = None
+    doubtful: NDArray[np.intp] | None = None
     if pts.shape[1] == 2:
         _refit_along_curve(pts, idx, normals, flatness)
     else:
-        links = _refit_sampled_curves(pts, tree, idx, normals, workers)
-    return orient_graph(pts, normals, idx, flatness, links, tree=tree) if orient else normals
+        curve, link_lo, link_hi = _refit_sampled_curves(pts, tree, idx, normals, workers)
+        links = (link_lo, link_hi)
+        # Where the k nearest points are a poor sample of a plane (on one or two rows, or not
+        # flat: sparse or uneven sampling, thin parts), the line with the largest empty ball.
+        doubtful = np.flatnonzero((values[:, 1] < _ROWS * values[:, 2]) | (values[:, 0] > _CURVED * values[:, 1]))
+        refitted = np.zeros(len(pts), dtype=bool)
+        refitted[curve] = True
+        pole_lines(pts, tree, doubtful, normals, workers, keep=refitted)
+    confidence = normal_confidence(pts, idx, normals) if want_confidence else np.full(len(pts), np.nan)
+    if orient:
+        # Sparse or unevenly sampled clouds: the doubtful points' outside is also tested with
+        # large empty balls (poles.exterior_anchors), and the winding number votes.
+        uneven = doubtful is not None and len(doubtful) >= _UNEVEN * len(pts)
+        normals = orient_graph(pts, normals, idx, flatness, links, tree=tree,
+                               exterior=doubtful if uneven else None, winding=uneven)
+    return normals, confidence
 
 
 def _check_inliers(inliers: ArrayLike, n: int) -> NDArray[np.bool_]:
@@ -215,14 +310,16 @@ def _check_inliers(inliers: ArrayLike, n: int) -> NDArray[np.bool_]:
     return mask
 
 
-def _normals_of_inliers(points: NDArray, mask: NDArray[np.bool_], k, orient, workers) -> NDArray[np.float64]:
-    """Normals estimated on the inliers alone; each other point takes its nearest inlier's."""
+def _normals_of_inliers(points: NDArray, mask: NDArray[np.bool_], k, orient, workers, return_confidence):
+    """Normals estimated on the inliers alone; each other point takes its nearest inlier's (confidence 0)."""
     normals = np.empty(points.shape)
-    normals[mask] = estimate_normals(points[mask], k, orient=orient, workers=workers)
+    confidence = np.zeros(len(points))
+    normals[mask], confidence[mask] = estimate_normals(points[mask], k, orient=orient, workers=workers,
+                                                       return_confidence=True)
     std = standardise(points)  # a far stray's squared distance must not overflow
     _, nearest = cKDTree(std[mask]).query(std[~mask], workers=check_workers(workers))
     normals[~mask] = normals[mask][nearest]
-    return normals
+    return (normals, confidence) if return_confidence else normals
 
 
 def contour_normals(points: ArrayLike, *, closed: bool = True, span: int = 1) -> NDArray[np.float64]:

@@ -109,15 +109,61 @@ def blocks(n: int, width: int):
 
 def pca_normals(points: NDArray, idx: NDArray[np.intp]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Direction of least spread of each neighbourhood (row of ``idx``), and how flat it is."""
+    normals, values = pca(points, idx)
+    return normals, flatness_of(values)
+
+
+def pca(points: NDArray, idx: NDArray[np.intp]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Direction of least spread of each neighbourhood (row of ``idx``), and the spreads.
+
+    The spreads are the covariance's eigenvalues, ascending, scaled to sum to 1.
+    """
     n, dim = len(idx), points.shape[1]
     normals = np.empty((n, dim))
-    flatness = np.empty(n)
+    values = np.empty((n, dim))
     for rows in blocks(n, idx.shape[1]):
-        values, vectors = np.linalg.eigh(covariances(points, idx[rows]))  # ascending eigenvalues
+        values[rows], vectors = np.linalg.eigh(covariances(points, idx[rows]))  # ascending eigenvalues
         normals[rows] = vectors[:, :, 0]
-        # Share of the spread along the normal: 0 on a flat patch, 1/D when isotropic.
-        flatness[rows] = np.clip(1.0 - dim * values[:, 0], 0.0, 1.0)
-    return normals, flatness
+    return normals, np.clip(values, 0.0, None)
+
+
+def flatness_of(values: NDArray) -> NDArray[np.float64]:
+    """Share of the spread along the normal, turned round: 1 on a flat patch, 0 when isotropic."""
+    return np.clip(1.0 - values.shape[1] * values[:, 0], 0.0, 1.0)
+
+
+def normal_confidence(points: NDArray, idx: NDArray[np.intp], normals: NDArray) -> NDArray[np.float64]:
+    """How well each neighbourhood (row of ``idx``) supports its normal line, from 0 to 1.
+
+    1 − (spread along the normal) / (least spread across it): near 1 where the neighbours lie
+    on a plane (line in 2D) through the normal's foot, 0 where they spread as much along the
+    normal as across it (noise, a crease, a thin part's two sides) or lie on one row in 3D (no
+    plane is determined). For the plane fit's own normal it is 1 − λ₁/λ₂ of the covariance.
+    """
+    n, dim = normals.shape
+    confidence = np.empty(n)
+    for rows in blocks(n, idx.shape[1]):
+        cov = covariances(points, idx[rows])
+        nrm = normals[rows]
+        nn = nrm[:, :, None] * nrm[:, None, :]
+        along = np.einsum("ij,ijk,ik->i", nrm, cov, nrm)
+        proj = np.eye(dim) - nn
+        # the normal's own direction moved above every spread (trace 1): the least is across it
+        across = np.linalg.eigvalsh(proj @ cov @ proj + 2.0 * nn)[:, 0]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            confidence[rows] = np.where(across > 0, 1.0 - along / across, 0.0)
+    return np.clip(np.nan_to_num(confidence), 0.0, 1.0)
+
+
+def spread(points: NDArray, most: int) -> NDArray[np.intp]:
+    """At most ``most`` indices of ``points``, every step-th in coordinate order, ascending.
+
+    Spread over the cloud, and independent of the input order.
+    """
+    n = len(points)
+    if n <= most:
+        return np.arange(n)
+    return np.sort(np.lexsort(points.T[::-1])[::-(-n // most)])
 
 
 def argmax_per_group(values: NDArray, labels: NDArray, ngroups: int) -> NDArray[np.intp]:

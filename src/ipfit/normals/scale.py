@@ -14,7 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
-from .local import DEFAULT_K, argmax_per_group, blocks, neighbours, pca_normals
+from .local import DEFAULT_K, argmax_per_group, blocks, flatness_of, neighbours, pca
 from .orient import orient_graph
 
 # Noise: the share of a neighbourhood's spread along its normal (the surface variation
@@ -30,6 +30,14 @@ _NOISY = {2: 0.1, 3: 0.025}
 # below _GAIN of its value at k or 2k, whichever is larger (a few points of pure noise look
 # flatter than they are: 0.24 at k = 6 in 2D, 0.33 at 12): on coarse but clean shapes (the
 # airplane, bunny_res4, a torus of 300 points) wider neighbourhoods are only rounder.
+# In 3D, noise must also show in the smallest neighbourhoods: the point and its 3 nearest, a
+# tetrahedron, flat on a clean surface and of random shape under noise (median surface variation
+# 0.0105-0.0165 on every noisy sphere, torus and ellipsoid of 300-3,000 points the test above takes
+# for noisy; 0.011-0.016 on a noisy torus of 300,000). Clean but sparse or uneven samples, such as
+# CAD meshes' vertices (rows of points, creases, thin parts, a coarse sampling of small details),
+# are rough at 12 points, but their tetrahedra are flat: 0-0.005 on the 12 development meshes,
+# 0.004 on bunny_res4. Wider neighbourhoods would only blur them.
+_ROUGH_TETRAHEDRA = 0.008
 _MAX_GROWTH = 32
 _MAX_WIDE_K = 400
 _GAIN = 0.75
@@ -49,6 +57,7 @@ class _Scaled(NamedTuple):
     flatness: NDArray[np.float64]
     centroid: NDArray[np.float64]  # of each point's chosen neighbourhood
     radius: float  # median radius of the chosen neighbourhoods
+    confidence: NDArray[np.float64]  # 1 - λ₁/λ₂ of the chosen neighbourhood (local.normal_confidence)
 
 
 def noise_scale(points: NDArray, tree: cKDTree, idx: NDArray[np.intp], flatness: NDArray,
@@ -65,6 +74,10 @@ def noise_scale(points: NDArray, tree: cKDTree, idx: NDArray[np.intp], flatness:
     start = float(np.median((1.0 - flatness) / dim))
     if start <= _NOISY[dim]:
         return None
+    if dim == 3 and k >= 4:
+        tetrahedra = float(np.median((1.0 - flatness_of(pca(points, idx[:, :4])[1])) / dim))
+        if tetrahedra <= _ROUGH_TETRAHEDRA:
+            return None
     k_max = min(_MAX_GROWTH * k, _MAX_WIDE_K, n // 4)
     scales = []
     kk = 2 * k
@@ -76,6 +89,7 @@ def noise_scale(points: NDArray, tree: cKDTree, idx: NDArray[np.intp], flatness:
     m = len(scales)
     normals = np.empty((m, n, dim))
     flat = np.empty((m, n))
+    support = np.empty((m, n))
     centroid = np.empty((m, n, dim))
     reach = np.empty((m, n))  # distance to the farthest point of each neighbourhood
     # Blocks of points, so the widest neighbourhoods (up to _MAX_WIDE_K points each) are never
@@ -84,7 +98,10 @@ def noise_scale(points: NDArray, tree: cKDTree, idx: NDArray[np.intp], flatness:
         dist, wide = tree.query(points[rows], k=scales[-1], workers=workers)
         wide = np.minimum(wide, n - 1)  # an overflowed distance finds no point: any index keeps shapes
         for j, kk in enumerate(scales):
-            normals[j, rows], flat[j, rows] = pca_normals(points, wide[:, :kk])
+            normals[j, rows], values = pca(points, wide[:, :kk])
+            flat[j, rows] = flatness_of(values)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                support[j, rows] = np.where(values[:, 1] > 0, 1.0 - values[:, 0] / values[:, 1], 0.0)
             centroid[j, rows] = points[wide[:, :kk]].mean(axis=1)
             reach[j, rows] = dist[:, kk - 1]
     variation = (1.0 - flat) / dim  # (scales, n)
@@ -96,7 +113,7 @@ def noise_scale(points: NDArray, tree: cKDTree, idx: NDArray[np.intp], flatness:
     at = np.arange(n)
     normals, flat, centroid = normals[choice, at], flat[choice, at], centroid[choice, at]
     radius = float(np.median(reach[choice, at]))
-    return _Scaled(normals, flat, centroid, radius)
+    return _Scaled(normals, flat, centroid, radius, np.clip(support[choice, at], 0.0, 1.0))
 
 
 def orient_coarse(points: NDArray, tree: cKDTree, scaled: _Scaled, workers: int) -> NDArray[np.float64]:
@@ -110,7 +127,7 @@ def orient_coarse(points: NDArray, tree: cKDTree, scaled: _Scaled, workers: int)
     :func:`orient_graph` like clean data. Each point then takes the sign that agrees best with the
     oriented representatives nearest to it on its own side (see _OFF_SHEET).
     """
-    normals, flatness, centroid, radius = scaled
+    normals, flatness, centroid, radius, _ = scaled
     n, dim = points.shape
     size = radius / _CELL
     fallback = not size > 0
