@@ -108,8 +108,9 @@ def test_a_torus_with_30_percent_outliers_keeps_its_zero_set(seed, offset):
     truth = synthetic.torus(8000, rng=np.random.default_rng(99)).points
     result = ipfit.fit_adaptive(cloud, max_degree=4, rng=seed)
     assert _zero_set_error(result.polynomial, _torus_distance, truth, size=2.8) < 0.01
-    plain = ipfit.fit_adaptive(cloud, max_degree=4, outliers="none", rng=seed)
-    assert _zero_set_error(plain.polynomial, _torus_distance, truth, size=2.8) > 0.1
+    # no contrast with outliers="none" here: since the normals of sparse clouds are oriented with
+    # exterior anchors and a winding vote, the plain degree-4 fit sometimes survives the strays
+    # too (seed 0: error 0.0004); the ellipse, sphere and Cassini tests keep the contrast
 
 
 @pytest.mark.parametrize("offset", [0, 1, 2])
