@@ -42,8 +42,9 @@ def _torus_terms(major, minor) -> dict:
             (0, 0, 0): s * s}
 
 
-def _sphere_first(o, d, center, radius, lo, hi):
-    """First t in [lo, hi] on |o + t d − c| = r (the quadratic formula); also how grazing (disc / a²)."""
+def _sphere_quadratic(o, d, center, radius):
+    """Both roots of |o + t d − c|² = r² (the quadratic formula, NaN where the discriminant is
+    negative) and the discriminant over a²."""
     a = np.sum(d * d, axis=1)
     oc = o - np.asarray(center)
     b = 2 * np.sum(d * oc, axis=1)
@@ -52,7 +53,13 @@ def _sphere_first(o, d, center, radius, lo, hi):
     root = np.sqrt(np.maximum(disc, 0.0))
     t = np.column_stack([(-b - root) / (2 * a), (-b + root) / (2 * a)])
     t[disc < 0] = np.nan
-    return _first_in(t, lo, hi), np.abs(disc) / a**2
+    return t, disc / a**2
+
+
+def _sphere_first(o, d, center, radius, lo, hi):
+    """First t in [lo, hi] on the sphere; also how grazing (|disc| / a²)."""
+    t, disc = _sphere_quadratic(o, d, center, radius)
+    return _first_in(t, lo, hi), np.abs(disc)
 
 
 def _torus_quartic_roots(o, d, major, minor):
@@ -175,13 +182,8 @@ def test_all_hits_of_the_union_along_lines_are_its_parts_hits(rng):
 
 
 def _sphere_roots(o, d, center, radius):
-    a = np.sum(d * d, axis=1)
-    oc = o - np.asarray(center)
-    b = 2 * np.sum(d * oc, axis=1)
-    c = np.sum(oc * oc, axis=1) - radius * radius
-    disc = b * b - 4 * a * c
-    root = np.sqrt(np.maximum(disc, 0.0))
-    t = np.column_stack([(-b - root) / (2 * a), (-b + root) / (2 * a)])
+    """Both roots where the ray crosses the sphere (a tangent ray's double root counts as none)."""
+    t, disc = _sphere_quadratic(o, d, center, radius)
     t[disc <= 0] = np.nan
     return t
 
