@@ -80,10 +80,7 @@ def load(spec: str | os.PathLike | object, *, max_points: int | None = None, rng
                         "Check the path.")
     points, normals = dataset = bundled.load_dataset(name)
     faces = bundled.dataset_faces(name)
-    if max_points is not None and len(points) > max_points:
-        # the draw of ipfit.read_points on a file of these points
-        keep = np.sort(generator.choice(len(points), max_points, replace=False))
-        points, normals, faces = points[keep], None if normals is None else normals[keep], None
+    points, normals, faces = _drawn(points, normals, faces, max_points, generator)
     return Cloud(points, normals, faces, name=name, source=name, n_file=len(dataset.points),
                  normals_source=dataset.normals_source)
 
@@ -98,7 +95,13 @@ def _from_object(parts: ForeignParts, max_points: int | None, rng) -> Cloud:
         max_points = check_int(max_points, "max_points", minimum=MIN_POINTS)
     generator = check_rng(rng)
     n_file = len(points)
-    if max_points is not None and len(points) > max_points:
-        keep = np.sort(generator.choice(len(points), max_points, replace=False))
-        points, normals, faces = points[keep], None if normals is None else normals[keep], None
+    points, normals, faces = _drawn(points, normals, faces, max_points, generator)
     return Cloud(points, normals, faces, name=parts.kind.split(".")[-1], source=parts.kind, n_file=n_file)
+
+
+def _drawn(points, normals, faces, max_points: int | None, generator):
+    """At most ``max_points`` points, drawn as ipfit.read_points draws from a file (no faces after)."""
+    if max_points is None or len(points) <= max_points:
+        return points, normals, faces
+    keep = np.sort(generator.choice(len(points), max_points, replace=False))
+    return points[keep], None if normals is None else normals[keep], None
