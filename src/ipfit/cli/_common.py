@@ -351,3 +351,41 @@ def cli_names(names: dict[str, str]):
         if sep and head in names:
             raise InvalidInputError(f"{names[head]}:{rest}") from None
         raise
+
+
+#: The compiled kernels a fit runs (``render`` adds the ray kernels).
+FIT_KERNELS = ("ipfit._basis_kernels", "ipfit.fitting._objective_kernels", "ipfit.optimize._kernels",
+               "ipfit.geometry._distance_kernels")
+
+
+def cold_kernels(modules: Sequence[str] = FIT_KERNELS) -> list[str]:
+    """The compiled kernels of ``modules`` that have no usable entry in numba's on-disk cache.
+
+    numba compiles a kernel on its first call and keeps the machine code beside the source (or in
+    ``NUMBA_CACHE_DIR``); its index records the source's timestamp, and an index written for an
+    older source is not used. A kernel listed here is compiled on this run: the first run after
+    an install takes some 20 s longer, and the commands say so first.
+    """
+    import importlib
+
+    from numba.core.registry import CPUDispatcher
+
+    cold = []
+    for name in modules:
+        module = importlib.import_module(name)
+        for attr, kernel in vars(module).items():
+            if not isinstance(kernel, CPUDispatcher) or getattr(kernel, "_cache", None) is None:
+                continue
+            try:  # numba's cache index, as its own loader reads it (empty when stale)
+                index = kernel._cache._cache_file._load_index()  # type: ignore[attr-defined]
+            except Exception:  # noqa: BLE001 - an unreadable index is one numba will rewrite
+                index = {}
+            if not index:
+                cold.append(f"{name}.{attr}")
+    return cold
+
+
+def say_if_compiling(command: str, modules: Sequence[str] = FIT_KERNELS) -> None:
+    """One line on stderr before a run that compiles kernels (the first after an install)."""
+    if cold_kernels(modules):
+        print(f"ipfit {command}: compiling kernels, first run only (about 20 s)", file=sys.stderr, flush=True)

@@ -33,7 +33,7 @@ def progress_mode(quiet: bool, stream: TextIO | None = None) -> str:
 class Progress:
     """Receives ``fit_adaptive``'s progress events and shows them."""
 
-    def __init__(self, mode: str, iterations: int | None, polish_iterations: int | None = None,
+    def __init__(self, mode: str, iterations: int | None = None, polish_iterations: int | None = None,
                  stream: TextIO | None = None) -> None:
         self.mode = mode
         self.stream = sys.stderr if stream is None else stream
@@ -43,6 +43,8 @@ class Progress:
         self._stage = None
         self._degree = None
         self._last = 0.0
+        self._normals_said = False
+        self._normals_held: list[dict] = []
 
     # -- events ------------------------------------------------------------------------------
     def __call__(self, event: dict) -> None:
@@ -52,6 +54,8 @@ class Progress:
         if kind == "degree_start":
             self._degree, self._stage = event["degree"], None
             self._line(f"degree {event['degree']}: fitting")
+        elif kind == "normals":
+            self._normals(event)
         elif kind == "iteration":
             self._iteration(event)
         elif kind == "degree_done":
@@ -68,6 +72,20 @@ class Progress:
         self._close_bar()
 
     # -- internals -------------------------------------------------------------------------------
+    def _normals(self, event: dict) -> None:
+        """The stages of the normal estimation, once it has taken a second: small clouds stay quiet."""
+        if event["message"] == "done":
+            if self._normals_said:
+                self._line(f"normals: done in {event['seconds']:.1f} s")
+            self._normals_held.clear()
+            return
+        self._normals_held.append(event)
+        if event["seconds"] >= 1.0:
+            for held in self._normals_held:
+                self._line(f"normals: {held['message']} ({held['seconds']:.1f} s)")
+            self._normals_held.clear()
+            self._normals_said = True
+
     def _iteration(self, event: dict) -> None:
         stage = event.get("stage", "de")
         if stage != self._stage:

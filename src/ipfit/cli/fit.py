@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from ._common import (
+    FIT_KERNELS,
     LazyChoices,
     Outputs,
     beside,
@@ -20,6 +21,7 @@ from ._common import (
     nonnegative_float,
     nonnegative_int,
     positive_int,
+    say_if_compiling,
     stop_at_iterations,
 )
 from ._progress import Progress, progress_mode
@@ -258,6 +260,9 @@ def run(args: argparse.Namespace) -> int:
     # the paper fits every point; otherwise stray returns are found first ("auto" on a mesh finds none)
     outliers = "none" if args.paper else ("auto" if args.outliers is None else args.outliers)
     source = "file"
+    if not args.quiet:  # the first run after an install sits ~20 s compiling: say so first
+        say_if_compiling("fit", FIT_KERNELS + (("ipfit.normals._scale_kernels",)
+                                               if normals is None or args.normals == "estimate" else ()))
     if normals is None or args.normals == "estimate":
         source = "estimated"
         if not args.quiet:  # on a big noisy cloud this takes a while: say what is happening
@@ -268,7 +273,7 @@ def run(args: argparse.Namespace) -> int:
         if outliers == "none":
             from ..normals import estimate_normals
 
-            normals = estimate_normals(points)
+            normals = estimate_normals(points, progress=Progress(progress_mode(args.quiet)))
         else:
             normals = None  # estimated by the fit, on the points it keeps
     method, options, rule = search_settings(args)

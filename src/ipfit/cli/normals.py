@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from pathlib import Path
 
 from ._common import Outputs, positive_int
+from ._progress import Progress, progress_mode
 
 NAME = "normals"
 HELP = "write a point file's normals (or estimated ones) to a PLY/OBJ/OFF/CSV/XYZ/NPY file"
@@ -77,7 +79,7 @@ def run(args: argparse.Namespace) -> int:
     if estimate or reference is None:
         k = args.k if args.k is not None else DEFAULT_K[dim]
         start = time.perf_counter()
-        normals = estimate_normals(points, k=k)
+        normals = estimate_normals(points, k=k, progress=Progress(progress_mode(False), stream=sys.stdout))
         seconds = time.perf_counter() - start
         why = "" if estimate else " (the input has none)"
         print(f"estimated normals{why} from the {k} nearest points of each point (k = {k}) in {seconds:.2f} s")

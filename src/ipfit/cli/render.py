@@ -37,7 +37,7 @@ def run(args: argparse.Namespace) -> int:
     from ..analysis.rays import render
     from ..degree.results import result_view
     from ..exceptions import InvalidInputError
-    from ._common import Outputs, recorded_sources
+    from ._common import Outputs, recorded_sources, say_if_compiling
     from .mesh import result_box, warn
 
     if not args.output.lower().endswith(".png"):
@@ -49,6 +49,7 @@ def run(args: argparse.Namespace) -> int:
         raise InvalidInputError(f"{args.result}: expected a 3D surface to ray-cast, got a 2D curve. "
                                 "Draw curves with ipfit plot.")
     box = result_box(view, args.points, args.margin, NAME)
+    say_if_compiling("render", ("ipfit.analysis._ray_kernels",))
     with outputs.writing() as stage:
         image = render(poly, box, stage(args.output), size=tuple(args.size), view=tuple(args.view), up=args.up)
     covered = float((image < 255).any(axis=2).mean())

@@ -14,6 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
+from ._scale_kernels import multiscale_pca
 from .local import DEFAULT_K, argmax_per_group, blocks, flatness_of, neighbours, pca
 from .orient import orient_graph
 
@@ -60,6 +61,22 @@ class _Scaled(NamedTuple):
     confidence: NDArray[np.float64]  # 1 - λ₁/λ₂ of the chosen neighbourhood (local.normal_confidence)
 
 
+def roughness(points: NDArray, idx: NDArray[np.intp], flatness: NDArray) -> float | None:
+    """The median surface variation of the neighbourhoods ``idx`` if it says noise, else None.
+
+    ``idx`` may be the neighbourhoods of a sample of the points (the test of a big cloud).
+    """
+    dim = points.shape[1]
+    start = float(np.median((1.0 - flatness) / dim))
+    if start <= _NOISY[dim]:
+        return None
+    if dim == 3 and idx.shape[1] >= 4:
+        tetrahedra = float(np.median((1.0 - flatness_of(pca(points, idx[:, :4])[1])) / dim))
+        if tetrahedra <= _ROUGH_TETRAHEDRA:
+            return None
+    return start
+
+
 def noise_scale(points: NDArray, tree: cKDTree, idx: NDArray[np.intp], flatness: NDArray,
                 workers: int) -> _Scaled | None:
     """Normals on neighbourhoods grown to see past the noise, or None if the data are not noisy.
@@ -71,13 +88,9 @@ def noise_scale(points: NDArray, tree: cKDTree, idx: NDArray[np.intp], flatness:
     """
     n, k = idx.shape
     dim = points.shape[1]
-    start = float(np.median((1.0 - flatness) / dim))
-    if start <= _NOISY[dim]:
+    start = roughness(points, idx, flatness)
+    if start is None:
         return None
-    if dim == 3 and k >= 4:
-        tetrahedra = float(np.median((1.0 - flatness_of(pca(points, idx[:, :4])[1])) / dim))
-        if tetrahedra <= _ROUGH_TETRAHEDRA:
-            return None
     k_max = min(_MAX_GROWTH * k, _MAX_WIDE_K, n // 4)
     scales = []
     kk = 2 * k
@@ -88,22 +101,29 @@ def noise_scale(points: NDArray, tree: cKDTree, idx: NDArray[np.intp], flatness:
         return None
     m = len(scales)
     normals = np.empty((m, n, dim))
-    flat = np.empty((m, n))
-    support = np.empty((m, n))
+    values = np.empty((m, n, dim))
     centroid = np.empty((m, n, dim))
     reach = np.empty((m, n))  # distance to the farthest point of each neighbourhood
+    sizes = np.array(scales, dtype=np.intp)
+    # In the k-d tree's leaf order, neighbours are near each other in memory: the wide queries
+    # and the pass over them read from cache (twice as fast on 10⁵ points).
+    order = tree.indices
+    local = points[order]
+    local_tree = cKDTree(local)
     # Blocks of points, so the widest neighbourhoods (up to _MAX_WIDE_K points each) are never
     # held for all points at once.
     for rows in blocks(n, scales[-1]):
-        dist, wide = tree.query(points[rows], k=scales[-1], workers=workers)
+        dist, wide = local_tree.query(local[rows], k=scales[-1], workers=workers)
         wide = np.minimum(wide, n - 1)  # an overflowed distance finds no point: any index keeps shapes
-        for j, kk in enumerate(scales):
-            normals[j, rows], values = pca(points, wide[:, :kk])
-            flat[j, rows] = flatness_of(values)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                support[j, rows] = np.where(values[:, 1] > 0, 1.0 - values[:, 0] / values[:, 1], 0.0)
-            centroid[j, rows] = points[wide[:, :kk]].mean(axis=1)
-            reach[j, rows] = dist[:, kk - 1]
+        b = len(wide)
+        block = np.empty((m, b, dim)), np.empty((m, b, dim)), np.empty((m, b, dim))
+        multiscale_pca(local, wide, sizes, *block)
+        at = order[rows]
+        normals[:, at], values[:, at], centroid[:, at] = block
+        reach[:, at] = dist[:, sizes - 1].T
+    flat = np.stack([flatness_of(v) for v in values])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        support = np.where(values[:, :, 1] > 0, 1.0 - values[:, :, 0] / values[:, :, 1], 0.0)
     variation = (1.0 - flat) / dim  # (scales, n)
     medians = np.median(variation, axis=1)
     if medians.min() > _GAIN * max(start, medians[0]):
