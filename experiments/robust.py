@@ -434,8 +434,9 @@ def per_shape(rows: list[dict], conditions, pipelines) -> list[str]:
 
 
 def markdown(meta: dict, rows: list[dict]) -> str:
-    conditions = [c for c in meta["conditions"] if any(r["condition"] == c for r in rows)]
-    pipelines = [p for p in meta["pipelines"] if any(r["pipeline"] == p for r in rows)]
+    # every condition and pipeline the rows hold, not only the last (resumed) run's
+    conditions = [c for c in CONDITIONS if any(r["condition"] == c for r in rows)]
+    pipelines = [p for p in PIPELINES if any(r["pipeline"] == p for r in rows)]
     dims = sorted({r["dim"] for r in rows})
     n_shapes = {d: len({r["shape"] for r in rows if r["dim"] == d}) for d in dims}
     shapes_text = " and ".join(f"{n_shapes[d]} {'2D contours' if d == 2 else '3D meshes'}" for d in dims)

@@ -29,7 +29,8 @@ SUBCOMMANDS = ("fit", "batch", "normals", "mesh", "plot", "view", "score", "expo
 
 def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     """The command line's parser; with ``command``, only that subcommand's options are built (the
-    others are listed, for ``ipfit --help``): building one imports what its choices need."""
+    others are listed, for ``ipfit --help``): building one imports what its choices need. With
+    ``command=""`` none is (``ipfit --version``, ``ipfit --help``: no fitting stack imported)."""
     import argparse
     import importlib
 
@@ -151,7 +152,7 @@ def _main(argv: Sequence[str] | None) -> int:
         warnings.showwarning = _warning_line(label)
         args = None
         try:
-            parser = build_parser(command or None)
+            parser = build_parser(command)
             args, extra = parser.parse_known_args(argv)
             if not getattr(args, "command", None):
                 if extra:
