@@ -113,6 +113,20 @@ def test_a_torus_with_30_percent_outliers_keeps_its_zero_set(seed, offset):
     # too (seed 0: error 0.0004); the ellipse, sphere and Cassini tests keep the contrast
 
 
+@pytest.mark.parametrize("offset", [0, pytest.param(1, marks=pytest.mark.slow), pytest.param(2, marks=pytest.mark.slow),
+                                    pytest.param(3, marks=pytest.mark.slow)])
+def test_the_bare_apple_with_40_percent_outliers_keeps_its_surface(seed, offset):
+    # A real scan's vertices (sparse, with a stem and a dimple) where the score misses some strays
+    # near the surface: their normals must neither orient the shape's nor pull the fit (seed 0
+    # gave F 0.946 with a spurious sheet when they did; 0.970 on seeds 0-3 now).
+    seed += offset
+    apple = ipfit.load("apple")
+    cloud, _ = with_outliers(apple.points, 0.4, np.random.default_rng(seed))
+    result = ipfit.fit_adaptive(cloud, rng=seed)
+    q = ipfit.quality(result.polynomial, apple.points, faces=apple.faces)
+    assert q.f_score >= 0.96 and q.n_spurious == 0, (q.f_score, q.n_spurious)
+
+
 @pytest.mark.parametrize("offset", [0, 1, 2])
 def test_the_json_names_the_planted_outliers(seed, offset):
     seed += offset
