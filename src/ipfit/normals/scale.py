@@ -14,7 +14,6 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
-from ._scale_kernels import multiscale_pca
 from .local import DEFAULT_K, argmax_per_group, blocks, flatness_of, neighbours, pca
 from .orient import orient_graph
 
@@ -105,6 +104,7 @@ def noise_scale(points: NDArray, tree: cKDTree, idx: NDArray[np.intp], flatness:
     centroid = np.empty((m, n, dim))
     reach = np.empty((m, n))  # distance to the farthest point of each neighbourhood
     sizes = np.array(scales, dtype=np.intp)
+    from ._scale_kernels import multiscale_pca  # here: numba loads only for noisy data
     # In the k-d tree's leaf order, neighbours are near each other in memory: the wide queries
     # and the pass over them read from cache (twice as fast on 10⁵ points).
     order = tree.indices
