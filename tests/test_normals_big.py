@@ -133,3 +133,15 @@ def test_the_first_fit_says_it_compiles_and_the_second_does_not(tmp_path):
     second = fit("second")
     assert second.returncode == 0, second.stderr
     assert "compiling kernels" not in second.stderr
+
+
+def test_reading_a_file_and_clean_normals_load_no_compiler(tmp_path):
+    # numba takes a second or more to import: a command that reads a file (a batch with nothing
+    # to do, ipfit view) or estimates clean normals must not pay for it
+    np.savetxt(tmp_path / "c.xyz", synthetic.circle(50).points)
+    code = ("import sys, ipfit, ipfit.io\n"
+            f"p, _ = ipfit.io.read_points({str(tmp_path / 'c.xyz')!r})\n"
+            "ipfit.estimate_normals(p)\n"
+            "print('numba' in sys.modules)")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert done.stdout.strip() == "False"
