@@ -11,7 +11,7 @@ import pytest
 from scipy.spatial import cKDTree
 
 from ipfit.datasets import synthetic
-from ipfit.normals import estimate_normals, normal_agreement
+from ipfit.normals import estimate_normals, normal_agreement, orient_normals
 from ipfit.normals.local import DEFAULT_K, normal_confidence, pca, pca_normals, standardise
 from ipfit.normals.poles import exterior_anchors
 from ipfit.normals.scale import noise_scale
@@ -227,3 +227,16 @@ def test_confidence_of_outliers_is_zero(rng):
 def test_return_confidence_must_be_a_flag():
     with pytest.raises(Exception, match="return_confidence"):
         estimate_normals(np.random.default_rng(0).random((20, 3)), return_confidence="yes")
+
+
+
+def test_orient_normals_orients_a_sparse_scan_as_estimate_normals_does():
+    """bunny_res4 (453 vertices) is sparse: a quarter of its points or more have neighbours that
+    are a poor plane sample, so estimate_normals orients with empty-ball anchors and a winding vote.
+    orient_normals, given the same lines, now does the same (before: 1.99 % flipped against the
+    mesh, 1.77 % from estimate_normals)."""
+    import ipfit
+
+    points = ipfit.load("bunny_res4").points
+    oriented = orient_normals(points, estimate_normals(points, orient=False))
+    assert np.all(np.einsum("ij,ij->i", oriented, estimate_normals(points)) > 0)

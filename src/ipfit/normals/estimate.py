@@ -31,7 +31,7 @@ from .local import (
     standardise,
 )
 from .orient import orient_graph
-from .poles import pole_lines
+from .poles import doubtful_points, is_uneven, pole_lines
 from .scale import noise_scale, orient_coarse, roughness
 
 __all__ = ["estimate_normals", "contour_normals"]
@@ -48,17 +48,6 @@ _CURVE_LINK_SLOPE = np.sin(np.radians(20.0))  # links across the curve: this clo
 # surfaces: on the apple, whose stem stands 4-6 mm from the dimple's wall, 4k and 8k both leave
 # the stem's lowest ring (24 points) flipped; 6k gets it right.
 _CURVE_REACH = 6
-# 3D points whose k nearest neighbours are a poor sample of a plane get the line of the largest
-# empty ball (poles.pole_lines): neighbours spread mostly along one direction (second spread below
-# _ROWS of the first: one or two rows of points), or not flat (least spread above _CURVED of the
-# second). A finely sampled scan has few: 2 % of the bunny, 8 % of bunny_res2, 14 % of the duck,
-# 21 % of the apple (its stem's rings); the vertices of the development CAD meshes 47-100 %.
-_ROWS = 0.3
-_CURVED = 0.1
-# Where at least this share is doubtful (CAD meshes: 47-100 %; the apple 21 %, the duck 14 %), the
-# neighbour graph's links are unreliable too (they cross thin parts): the orientation also takes
-# anchors from large empty balls and the winding number's vote (orient._winding_votes).
-_UNEVEN = 0.25
 # Noisy clouds of more than _NOISY_SAMPLE points are estimated on an even sample of that many
 # (normals.local.spread): the neighbourhoods that see past the noise hold up to 400 points, and
 # on a million points their search took minutes. Under noise wider than the spacing, a sample
@@ -327,7 +316,7 @@ def _estimate(pts: NDArray, k, orient: bool, workers: int, want_confidence: bool
         links = (link_lo, link_hi)
         # Where the k nearest points are a poor sample of a plane (on one or two rows, or not
         # flat: sparse or uneven sampling, thin parts), the line with the largest empty ball.
-        doubtful = np.flatnonzero((values[:, 1] < _ROWS * values[:, 2]) | (values[:, 0] > _CURVED * values[:, 1]))
+        doubtful = doubtful_points(values)
         refitted = np.zeros(len(pts), dtype=bool)
         refitted[curve] = True
         pole_lines(pts, tree, doubtful, normals, workers, keep=refitted)
@@ -336,7 +325,7 @@ def _estimate(pts: NDArray, k, orient: bool, workers: int, want_confidence: bool
         say("orienting")
         # Sparse or unevenly sampled clouds: the doubtful points' outside is also tested with
         # large empty balls (poles.exterior_anchors), and the winding number votes.
-        uneven = doubtful is not None and len(doubtful) >= _UNEVEN * len(pts)
+        uneven = doubtful is not None and is_uneven(doubtful, len(pts))
         normals = orient_graph(pts, normals, idx, flatness, links, tree=tree,
                                exterior=doubtful if uneven else None, winding=uneven)
     return normals, confidence

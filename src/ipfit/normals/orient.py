@@ -17,8 +17,8 @@ from scipy.spatial import ConvexHull, QhullError, cKDTree
 
 from .._utils.numeric import unit_rows, unit_rows_mask
 from .._utils.validation import as_matching, as_points, error
-from .local import argmax_per_group, blocks, check_workers, default_k, neighbours, spread, standardise
-from .poles import exterior_anchors
+from .local import argmax_per_group, blocks, check_workers, default_k, neighbours, pca, spread, standardise
+from .poles import doubtful_points, exterior_anchors, is_uneven
 
 __all__ = ["orient_normals"]
 
@@ -38,7 +38,11 @@ def orient_normals(points: ArrayLike, normals: ArrayLike, k: int | None = None, 
     Two changes to Hoppe's 1 − |n_i·n_j| make it robust on thin parts and sharp tips: the
     edge weight compares n_i with n_j mirrored across the bisector of the two points, and
     the pieces of the tree between doubtful links are re-oriented as wholes by a least-squares
-    vote of all neighbour edges and anchors.
+    vote of all neighbour edges and anchors. On sparse or unevenly sampled 3D clouds (a quarter
+    of the points or more whose neighbours are a poor sample of a plane, as the vertices of CAD
+    meshes), points touched by a large empty ball from one side are anchors too, and the pieces
+    the winding number of the others says are inside out are flipped, as in
+    :func:`estimate_normals`.
 
     Parameters
     ----------
@@ -64,7 +68,12 @@ def orient_normals(points: ArrayLike, normals: ArrayLike, k: int | None = None, 
     workers = check_workers(workers)
     pts = standardise(pts)
     tree = cKDTree(pts)
-    return orient_graph(pts, nrm, neighbours(tree, k, workers), np.ones(len(pts)), tree=tree)
+    idx = neighbours(tree, k, workers)
+    exterior = None
+    if pts.shape[1] == 3:  # sparse or uneven clouds: anchors from empty balls and a winding vote, as estimated
+        doubtful = doubtful_points(pca(pts, idx)[1])
+        exterior = doubtful if is_uneven(doubtful, len(pts)) else None
+    return orient_graph(pts, nrm, idx, np.ones(len(pts)), tree=tree, exterior=exterior, winding=exterior is not None)
 
 
 def _edges(idx: NDArray[np.intp], links) -> tuple[NDArray[np.intp], NDArray[np.intp]]:

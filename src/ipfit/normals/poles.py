@@ -26,6 +26,29 @@ from scipy.spatial import cKDTree
 from .._utils.numeric import row_norms, unit_rows_mask
 from .local import blocks, covariances, neighbours, spread
 
+# 3D points whose k nearest neighbours are a poor sample of a plane get the line of the largest
+# empty ball (pole_lines): neighbours spread mostly along one direction (second spread below
+# _ROWS of the first: one or two rows of points), or not flat (least spread above _CURVED of the
+# second). A finely sampled scan has few: 2 % of the bunny, 8 % of bunny_res2, 14 % of the duck,
+# 21 % of the apple (its stem's rings); the vertices of the development CAD meshes 47-100 %.
+_ROWS = 0.3
+_CURVED = 0.1
+# Where at least this share is doubtful (CAD meshes: 47-100 %; the apple 21 %, the duck 14 %), the
+# neighbour graph's links are unreliable too (they cross thin parts): the orientation also takes
+# anchors from large empty balls and the winding number's vote (orient._winding_votes).
+_UNEVEN = 0.25
+
+
+def doubtful_points(values: NDArray) -> NDArray[np.intp]:
+    """The points whose k-nearest spreads (``values``, (N, 3) ascending) are a poor sample of a plane."""
+    return np.flatnonzero((values[:, 1] < _ROWS * values[:, 2]) | (values[:, 0] > _CURVED * values[:, 1]))
+
+
+def is_uneven(doubtful: NDArray[np.intp], n: int) -> bool:
+    """Whether a cloud with these doubtful points is sparse or uneven enough for empty-ball anchors."""
+    return len(doubtful) >= _UNEVEN * n
+
+
 # The nearest points that bound the empty balls (the point itself included). On the development
 # meshes 48 gets most of the full Voronoi poles' gain (24: half; 96: no more), at 48 dot products
 # per candidate and point.
