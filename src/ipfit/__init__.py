@@ -51,9 +51,11 @@ _LAZY = {
     "orient_normals": "normals",
     "dataset_names": "datasets", "list_datasets": "datasets", "load_dataset": "datasets", "load": "datasets",
     "fit_many": "batch", "BatchResult": "batch",
+    "load_result": "degree.results",
+    "fit_scene": "scene", "SceneResult": "scene", "load_scene": "scene",
     # the rooms of the package, reachable as attributes (ipfit.analysis.curvature, ...)
     "analysis": None, "batch": None, "datasets": None, "degree": None, "fitting": None, "geometry": None,
-    "io": None, "normals": None, "reproduce": None, "viz": None, "zeroset": None,
+    "io": None, "normals": None, "reproduce": None, "scene": None, "viz": None, "zeroset": None,
 }
 
 
@@ -104,6 +106,10 @@ __all__ = [
     "fit_many",
     "fit_chunked",
     "BatchResult",
+    "fit_scene",
+    "SceneResult",
+    "load_scene",
+    "load_result",
     "read_points",
     "read_mesh",
     "write_points",
