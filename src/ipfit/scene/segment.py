@@ -52,10 +52,12 @@ OBJECT, PLANE, CLUTTER, OUTLIER = 0, 1, 2, 3
 # A neck: the best cut along the graph's Fiedler vector crosses fewer than this share of the
 # links a cut of the same parts would cross on one smooth body (see neck()), with both parts
 # holding at least _NECK_PART of the points. Measured in experiments/scenes.py.
-_NECK_RATIO = 0.45
+_NECK_RATIO = 0.22
 _NECK_PART = 0.15
-_NECK_K = 10
+_NECK_K = 6
 _NECK_MAX_POINTS = 3000
+# Fewer points than this: no neck test (the ratio's reference needs a well-sampled body).
+_NECK_MIN_POINTS = 400
 
 
 class PlaneModel:
@@ -265,7 +267,7 @@ def segment(points: ArrayLike, *, planes: bool | None = None, outliers: str | fl
         threshold = max(PLANE_SCALES * noise, spacing)
         generator = np.random.default_rng(rng)
         for _ in range(MAX_PLANES):
-            plane = _dominant_plane(pts, keep, threshold, plane_share, generator)
+            plane = _dominant_plane(pts, keep, threshold, plane_share, LINK_SPACINGS * spacing, generator)
             if plane is None:
                 break
             found.append(plane)
@@ -298,8 +300,13 @@ def segment(points: ArrayLike, *, planes: bool | None = None, outliers: str | fl
                          "plane_share": plane_share if planes else None})
 
 
-def _dominant_plane(pts, keep, threshold: float, share: float, generator) -> Plane | None:
-    """The plane of RANSAC on ``pts[keep]`` when it holds at least ``share`` of them, else None."""
+def _dominant_plane(pts, keep, threshold: float, share: float, reach: float, generator) -> Plane | None:
+    """The plane of RANSAC on ``pts[keep]`` when one connected patch of it (linked at ``reach``)
+    holds at least ``share`` of them, else None. The patch alone is removed: a plane that only
+    slices through several objects (their bottoms, their flat faces) has no such patch."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
     from skimage.measure import ransac
 
     data = pts[keep]
@@ -316,7 +323,15 @@ def _dominant_plane(pts, keep, threshold: float, share: float, generator) -> Pla
         inliers = model.residuals(data) <= threshold
     if inliers.sum() < share * len(data):
         return None
-    return Plane(np.asarray(model.normal, dtype=np.float64), model.offset, keep[inliers], float(threshold))
+    on = np.flatnonzero(inliers)
+    pairs = cKDTree(data[on]).query_pairs(reach, output_type="ndarray")
+    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(on), len(on)))
+    _, patch = connected_components(graph, directed=False)
+    largest = np.bincount(patch).argmax()
+    on = on[patch == largest]
+    if len(on) < share * len(data):
+        return None
+    return Plane(np.asarray(model.normal, dtype=np.float64), model.offset, keep[on], float(threshold))
 
 
 def neck(points: ArrayLike, rng=0) -> tuple[float, NDArray[np.bool_]]:
@@ -342,7 +357,7 @@ def neck(points: ArrayLike, rng=0) -> tuple[float, NDArray[np.bool_]]:
     pts = np.asarray(points, dtype=np.float64)
     n, dim = pts.shape
     side = np.zeros(n, dtype=bool)
-    if n < 4 * _NECK_K:
+    if n < max(4 * _NECK_K, _NECK_MIN_POINTS):
         return float("inf"), side
     pick = np.arange(n)
     if n > _NECK_MAX_POINTS:
