@@ -232,10 +232,6 @@ def segment(points: ArrayLike, *, planes: bool | None = None, outliers: str | fl
     >>> [c.n_points for c in seg.objects], seg.labels[[0, 200]].tolist()
     ([200, 200], [0, 1])
     """
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-    from scipy.spatial import cKDTree
-
     from ..robust import check_outliers, score_outliers
 
     pts = as_points(points, min_points=2)
@@ -258,7 +254,8 @@ def segment(points: ArrayLike, *, planes: bool | None = None, outliers: str | fl
     if len(keep) < 2:
         raise InvalidInputError(f"points: expected a scan with objects, got {n} points of which {len(keep)} are "
                                 "not outliers. Pass the whole scan.")
-    spacing = float(np.median(cKDTree(pts[keep]).query(pts[keep], k=2)[0][:, 1]))
+    local = local_spacing(pts[keep])
+    spacing = float(np.median(local))
     if not spacing > 0:
         raise InvalidInputError("points: expected distinct points, got a scan whose points mostly repeat. "
                                 "Remove the duplicates.")
@@ -267,7 +264,7 @@ def segment(points: ArrayLike, *, planes: bool | None = None, outliers: str | fl
         threshold = max(PLANE_SCALES * noise, spacing)
         generator = np.random.default_rng(rng)
         for _ in range(MAX_PLANES):
-            plane = _dominant_plane(pts, keep, threshold, plane_share, LINK_SPACINGS * spacing, generator)
+            plane = _dominant_plane(pts, keep, threshold, plane_share, link, generator)
             if plane is None:
                 break
             found.append(plane)
@@ -275,14 +272,11 @@ def segment(points: ArrayLike, *, planes: bool | None = None, outliers: str | fl
             keep = np.flatnonzero(kinds == OBJECT)
             if len(keep) < min_points:
                 break
-    reach = LINK_SPACINGS * spacing if link is None else link
     labels = np.full(n, -1, dtype=np.int64)
     objects: list[Cluster] = []
     clutter: list[Cluster] = []
     if len(keep):
-        pairs = cKDTree(pts[keep]).query_pairs(reach, output_type="ndarray")
-        graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(keep), len(keep)))
-        _, component = connected_components(graph, directed=False)
+        component = _components(pts[keep], LINK_SPACINGS * local_spacing(pts[keep]) if link is None else link)
         sizes = np.bincount(component)
         for c in np.argsort(-sizes, kind="stable"):
             members = keep[component == c]
@@ -295,18 +289,48 @@ def segment(points: ArrayLike, *, planes: bool | None = None, outliers: str | fl
     for cluster in clutter:
         kinds[cluster.indices] = CLUTTER
     objects = [_with_neck(pts, c, rng) for c in objects]
+    reach = LINK_SPACINGS * spacing if link is None else link
     return Segmentation(labels, kinds, tuple(objects), tuple(found), tuple(clutter), spacing, float(reach), noise,
                         {"link_spacings": None if link is not None else LINK_SPACINGS, "min_points": min_points,
                          "plane_share": plane_share if planes else None})
 
 
-def _dominant_plane(pts, keep, threshold: float, share: float, reach: float, generator) -> Plane | None:
-    """The plane of RANSAC on ``pts[keep]`` when one connected patch of it (linked at ``reach``)
-    holds at least ``share`` of them, else None. The patch alone is removed: a plane that only
-    slices through several objects (their bottoms, their flat faces) has no such patch."""
+def local_spacing(points: NDArray[np.float64], tree=None) -> NDArray[np.float64]:
+    """Each point's spacing where it lies: the median, over it and its 15 nearest neighbours, of
+    their distances to their nearest neighbour (a scan's density varies: a table far from the
+    scanner is sparser than a toy near it; the median of 16 keeps one sample's luck out of it)."""
+    from scipy.spatial import cKDTree
+
+    tree = cKDTree(points) if tree is None else tree
+    k = min(16, len(points))
+    distance, near = tree.query(points, k=k)
+    nearest = distance[:, 1] if k > 1 else np.zeros(len(points))
+    return np.median(nearest[near], axis=1)
+
+
+def _components(points: NDArray[np.float64], reach: NDArray[np.float64] | float) -> NDArray[np.int64]:
+    """Connected components of the graph linking i and j when one is within the other's ``reach``."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
     from scipy.spatial import cKDTree
+
+    tree = cKDTree(points)
+    if np.ndim(reach) == 0:
+        pairs = tree.query_pairs(float(reach), output_type="ndarray")
+        rows, cols = pairs[:, 0], pairs[:, 1]
+    else:
+        balls = tree.query_ball_point(points, np.asarray(reach), workers=-1)
+        rows = np.repeat(np.arange(len(points)), [len(b) for b in balls])
+        cols = np.fromiter((j for b in balls for j in b), dtype=np.int64, count=len(rows))
+    graph = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(len(points), len(points)))
+    return connected_components(graph, directed=False)[1]
+
+
+def _dominant_plane(pts, keep, threshold: float, share: float, reach: float | None, generator) -> Plane | None:
+    """The plane of RANSAC on ``pts[keep]`` when one connected patch of it (linked at ``reach``, or
+    at :data:`LINK_SPACINGS` of its points' local spacing when None) holds at least ``share`` of
+    them, else None. The patch alone is removed: a plane that only
+    slices through several objects (their bottoms, their flat faces) has no such patch."""
     from skimage.measure import ransac
 
     data = pts[keep]
@@ -324,9 +348,8 @@ def _dominant_plane(pts, keep, threshold: float, share: float, reach: float, gen
     if inliers.sum() < share * len(data):
         return None
     on = np.flatnonzero(inliers)
-    pairs = cKDTree(data[on]).query_pairs(reach, output_type="ndarray")
-    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(on), len(on)))
-    _, patch = connected_components(graph, directed=False)
+    # linked at its points' own spacing: a table is often sampled sparser (or denser) than the objects
+    patch = _components(data[on], reach if reach is not None else LINK_SPACINGS * local_spacing(data[on]))
     largest = np.bincount(patch).argmax()
     on = on[patch == largest]
     if len(on) < share * len(data):
