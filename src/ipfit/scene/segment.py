@@ -52,7 +52,7 @@ OBJECT, PLANE, CLUTTER, OUTLIER = 0, 1, 2, 3
 # A neck: the best cut along the graph's Fiedler vector crosses fewer than this share of the
 # links a cut of the same parts would cross on one smooth body (see neck()), with both parts
 # holding at least _NECK_PART of the points. Measured in experiments/scenes.py.
-_NECK_RATIO = 0.22
+_NECK_RATIO = 0.25
 _NECK_PART = 0.15
 _NECK_K = 6
 _NECK_MAX_POINTS = 3000
