@@ -73,7 +73,7 @@ def test_two_spheres_and_a_plane_segmented(seed):
 
 @pytest.mark.parametrize("seed", [0, 3])
 def test_two_spheres_and_a_plane_fitted_radii_to_one_percent(seed):
-    pts, truth = _two_spheres_on_a_plane(seed)
+    pts, _ = _two_spheres_on_a_plane(seed)
     scene = fit_scene(pts, rng=seed)
     assert len(scene) == 2 and len(scene.segmentation.planes) == 1
     for result, center, radius in zip(scene, [(0, 0, 0), (2.8, 0, -0.5)], [1.0, 0.5], strict=True):

@@ -55,8 +55,8 @@ def _read_scan(args):
         labels = np.concatenate([np.full(len(p), i) for i, (p, _) in enumerate(shapes)])
         return points, normals, labels, path.stem, "contour"
     data = load(args.input, max_points=args.max_points)
-    normals = None if args.normals == "estimate" else data.normals
-    return data.points, normals, None, data.name, "file" if normals is not None else "estimated"
+    given = None if args.normals == "estimate" else data.normals
+    return data.points, given, None, data.name, "file" if given is not None else "estimated"
 
 
 def _suffixes(args, dim: int) -> list[str]:

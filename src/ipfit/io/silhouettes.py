@@ -19,7 +19,8 @@ from ..exceptions import InvalidInputError, ReadError
 from ..normals import contour_normals
 from ._base import MIN_POINTS, Raw, short
 
-__all__ = ["trace_silhouette", "trace_silhouettes", "read_silhouettes", "read_image", "check_image_pixels", "CONTOUR_SPAN", "IMAGE_SUFFIXES",
+__all__ = ["trace_silhouette", "trace_silhouettes", "read_silhouettes", "read_image", "check_image_pixels",
+           "CONTOUR_SPAN", "IMAGE_SUFFIXES",
            "MAX_IMAGE_PIXELS", "MIN_SHAPE_POINTS"]
 
 #: Central-difference span for the normals of traced contours (see ``contour_normals``):

@@ -34,8 +34,8 @@ def from_labels(points, labels: ArrayLike, min_points: int = 1) -> Segmentation:
         raise error("labels", f"one whole number per point ({len(points)})", f"shape {labels.shape} and dtype "
                     f"{labels.dtype}")
     kinds = np.where(labels >= 0, OBJECT, CLUTTER).astype(np.int64)
-    objects = []
-    clutter = []
+    objects: list[Cluster] = []
+    clutter: list[Cluster] = []
     for value in np.unique(labels[labels >= 0]):
         members = np.flatnonzero(labels == value)
         (objects if len(members) >= min_points else clutter).append(Cluster(members))

@@ -102,7 +102,7 @@ class SceneResult:
         record_input: dict[str, Any] = {"source": source, "n_points": self.n_points, "normals": normals}
         if path is not None:
             record_input["path"] = path
-        boxes = np.array([b for b in self.boxes]) if self.boxes else None
+        boxes = np.array(self.boxes) if self.boxes else None
         out: dict[str, Any] = {
             "format": FORMAT_NAME, "version": FORMAT_VERSION, "dim": self.dim, "objects": objects, "planes": planes,
             "segmentation": {**seg.to_dict(), "success": self.success, "message": self.message,
