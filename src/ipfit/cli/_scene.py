@@ -65,13 +65,16 @@ def _suffixes(args, dim: int) -> list[str]:
     return suffixes + ([".html"] if args.html else [])
 
 
-def run_fit(args: argparse.Namespace) -> int:
-    """``ipfit fit INPUT --objects``: PREFIX.json (the scene), PREFIX.png, the zero sets, PREFIX.html."""
+def run_fit(args: argparse.Namespace, settings, parse_degree, names: dict) -> int:
+    """``ipfit fit INPUT --objects``: PREFIX.json (the scene), PREFIX.png, the zero sets, PREFIX.html.
+
+    ``settings`` is ``(method, options, rule)`` and ``parse_degree(text, dim)`` reads --degree, as
+    ``ipfit fit`` has them (passed in: this module is below ``cli/fit.py``); ``names`` maps the
+    library's parameters to the options typed."""
     from .._result_schema import check_coordinates
     from ..exceptions import InvalidInputError
     from ..scene.draw import object_zero_sets, plot_scene, write_scene_html, write_zero_sets
     from ..scene.fit import fit_scene
-    from .fit import _OPTION_NAMES, _parse_degree, search_settings
 
     if args.workers is not None and args.scheduler is not None:
         raise InvalidInputError("--workers/--scheduler: pick one (an embedded cluster of N workers, or the "
@@ -83,11 +86,11 @@ def run_fit(args: argparse.Namespace) -> int:
         raise InvalidInputError(f"--normals file: {args.input} has no normals. Use --normals estimate.")
     check_coordinates(points)
     dim = points.shape[1]
-    degree = _parse_degree(args.degree, dim)
+    degree = parse_degree(args.degree, dim)
     suffixes = _suffixes(args, dim)
     prefix = fit_prefix(args.output) if args.output else default_prefix(name, suffixes, [args.input])
     outputs = Outputs([beside(prefix, s) for s in suffixes], inputs=[args.input], make_folders=True)
-    method, options, rule = search_settings(args)
+    method, options, rule = settings
     outliers = "none" if args.paper else ("auto" if args.outliers is None else args.outliers)
 
     def progress(event):
@@ -98,7 +101,7 @@ def run_fit(args: argparse.Namespace) -> int:
               f"{event['selected_degree']}" + ("" if f is None else f", F-score {f:.3f}")
               + (" (may be two touching objects, fitted as one)" if event["touching"] else ""), file=sys.stderr)
 
-    with cli_names({**_OPTION_NAMES, "workers": "--workers", "labels": "INPUT"}):
+    with cli_names({**names, "workers": "--workers", "labels": "INPUT"}):
         scene = fit_scene(points, normals, labels=labels, keep_planes=args.keep_planes, outliers=outliers,
                           method=method, options=options, min_degree=degree or 2,
                           max_degree=degree if degree is not None else args.max_degree, epsilon=args.epsilon,
@@ -195,12 +198,12 @@ def run_plot(args: argparse.Namespace) -> int:
     return 0
 
 
-def run_mesh(args: argparse.Namespace) -> int:
+def run_mesh(args: argparse.Namespace, check_output_suffix) -> int:
+    """``ipfit mesh SCENE.json``; ``check_output_suffix(path, dim)`` is ``cli/mesh.py``'s (this module is below it)."""
     from ..exceptions import InvalidInputError
     from ..scene.draw import object_path, object_zero_sets, write_zero_sets
     from ..scene.results import load_scene
     from ._common import recorded_sources
-    from .mesh import check_output_suffix
 
     view = load_scene(args.result)
     check_output_suffix(args.output, view.dim)

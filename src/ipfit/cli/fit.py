@@ -247,7 +247,7 @@ def run(args: argparse.Namespace) -> int:
     if args.objects:  # a scene: every object its own fit (cli/_scene.py)
         from ._scene import run_fit
 
-        return run_fit(args)
+        return run_fit(args, search_settings(args), _parse_degree, _OPTION_NAMES)
     if args.keep_planes or args.workers is not None or args.scheduler is not None:
         raise InvalidInputError("--keep-planes/--workers/--scheduler: they apply to a scene; add --objects.")
     data = load(args.input, max_points=args.max_points)

@@ -224,7 +224,7 @@ def run(args: argparse.Namespace) -> int:
     from ._scene import is_scene_file, run_mesh
 
     if is_scene_file(args.result):  # a scene: every object in one page, figure or export (cli/_scene.py)
-        return run_mesh(args)
+        return run_mesh(args, check_output_suffix)
 
     view = result_view(args.result)
     check_output_suffix(args.output, view.dim)
