@@ -147,7 +147,7 @@ def plot_scene(scene, points: NDArray | None = None, path: str | os.PathLike | N
 
         _frame(ax, box, 3, axis_off=False)
     n = len(scene_view.objects)
-    ax.legend(loc="upper right", fontsize=7, frameon=False)
+    ax.legend(loc="best" if dim == 2 else "upper right", fontsize=7, frameon=False)
     ax.set_title(title or f"{n} object{'s' if n != 1 else ''}, each its own polynomial", fontsize=10)
     if path is not None:
         save_figure(fig, path, dpi=dpi)
