@@ -7,7 +7,8 @@ adaptive degree selection.
 Every public name is here, in one ``__all__``. The package is grouped by concept: the core model
 at the top level (``polynomial``, ``basis``, ``cloud``), then ``fitting`` (one degree), ``degree``
 (choosing it), ``zeroset`` (extracting and measuring the zero set), ``geometry``, ``analysis``
-(using a fit), ``viz``, ``io``, ``normals``, ``datasets``, ``batch``, ``reproduce`` and ``cli``;
+(using a fit), ``viz``, ``io``, ``normals``, ``datasets``, ``batch``, ``scene`` (several objects in
+one scan), ``reproduce`` and ``cli``;
 ``docs/architecture.md`` shows their layers.
 """
 
