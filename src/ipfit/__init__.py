@@ -7,7 +7,8 @@ adaptive degree selection.
 Every public name is here, in one ``__all__``. The package is grouped by concept: the core model
 at the top level (``polynomial``, ``basis``, ``cloud``), then ``fitting`` (one degree), ``degree``
 (choosing it), ``zeroset`` (extracting and measuring the zero set), ``geometry``, ``analysis``
-(using a fit), ``viz``, ``io``, ``normals``, ``datasets``, ``batch``, ``reproduce`` and ``cli``;
+(using a fit), ``viz``, ``io``, ``normals``, ``datasets``, ``batch``, ``scene`` (several objects in
+one scan), ``reproduce`` and ``cli``;
 ``docs/architecture.md`` shows their layers.
 """
 
@@ -51,9 +52,11 @@ _LAZY = {
     "orient_normals": "normals",
     "dataset_names": "datasets", "list_datasets": "datasets", "load_dataset": "datasets", "load": "datasets",
     "fit_many": "batch", "BatchResult": "batch",
+    "load_result": "degree.results",
+    "fit_scene": "scene", "SceneResult": "scene", "load_scene": "scene",
     # the rooms of the package, reachable as attributes (ipfit.analysis.curvature, ...)
     "analysis": None, "batch": None, "datasets": None, "degree": None, "fitting": None, "geometry": None,
-    "io": None, "normals": None, "reproduce": None, "viz": None, "zeroset": None,
+    "io": None, "normals": None, "reproduce": None, "scene": None, "viz": None, "zeroset": None,
 }
 
 
@@ -104,6 +107,10 @@ __all__ = [
     "fit_many",
     "fit_chunked",
     "BatchResult",
+    "fit_scene",
+    "SceneResult",
+    "load_scene",
+    "load_result",
     "read_points",
     "read_mesh",
     "write_points",

@@ -104,6 +104,12 @@ _TYPES = {
                            lambda v: isinstance(v, list) and bool(v) and all(isinstance(r, list) for r in v)
                            and len({len(r) for r in v}) == 1 and len(v[0]) in (2, 3)
                            and all(_is_whole(e) and _is_finite(e) and e >= 0 for r in v for e in r)),
+    "integers": _Type("a list of whole numbers", lambda v: isinstance(v, list) and all(
+        _is_whole(i) and _is_finite(i) for i in v)),
+    "box": _Type("[[min...], [max...]]: two lists of finite numbers of one length, min <= max",
+                 lambda v: isinstance(v, list) and len(v) == 2 and all(
+                     isinstance(r, list) and all(map(_is_finite, r)) for r in v) and len(v[0]) == len(v[1])
+                 and all(a <= b for a, b in zip(v[0], v[1], strict=True))),
     "bounds": _Type("a list of [low, high] pairs of finite numbers, one per axis, low <= high",
                     lambda v: isinstance(v, list) and all(
                         isinstance(r, list) and len(r) == 2 and all(map(_is_finite, r)) and r[0] <= r[1] for r in v)),
@@ -249,6 +255,34 @@ SCHEMA: tuple[Key, ...] = (
     _k("comparisons.*.degree", "integer >= 1", "its degree; must agree with the number of coefficients"),
     _k("comparisons.*.method", "string", "the fit"),
     *_normalization("comparisons.*.normalization", "its own normalisation; absent means the top-level one"),
+    # A scene (ipfit fit --objects, ipfit.fit_scene): no polynomial of its own (exponents and
+    # coefficients are then not required), one complete result per object.
+    _k("objects", "list of objects", "a scene: one complete result per object (every key above; each readable "
+       "alone by ipfit.load_result); a scene has no top-level polynomial"),
+    _k("objects[].bounding_box", "box", "the object's points' box, [[min...], [max...]] in the input's coordinates"),
+    _k("objects[].n_points", "integer >= 0", "the object's points"),
+    _k("objects[].touching", "boolean", "the object may be two objects that touch (a narrow neck), fitted as one"),
+    _k("objects[].note", "string", "what the segmentation says of it, in words (e.g. why touching)"),
+    _k("planes", "list of objects", "a scene: the dominant planes removed before the objects were split"),
+    _k("planes[].normal", "numbers", "its unit normal n (the plane is n · x = offset)", required=True),
+    _k("planes[].offset", "number", "its offset", required=True),
+    _k("planes[].n_points", "integer >= 0", "points on it (within threshold)"),
+    _k("planes[].threshold", "number", "the distance within which a point was on it"),
+    _k("planes[].polynomial", "object", "the plane as a degree-1 result (fit_scene(keep_planes=True), "
+       "ipfit fit --objects --keep-planes)"),
+    _k("segmentation", "object", "a scene: how the scan was split"),
+    _k("segmentation.n_points", "integer >= 0", "points in the scan"),
+    _k("segmentation.n_objects", "integer >= 0", "objects found (the entries of objects)"),
+    _k("segmentation.n_planes", "integer >= 0", "planes removed"),
+    _k("segmentation.n_clutter", "integer >= 0", "pieces too small to fit (clutter)"),
+    _k("segmentation.n_clutter_points", "integer >= 0", "points in them"),
+    _k("segmentation.n_outliers", "integer >= 0", "stray returns set aside before the split"),
+    _k("segmentation.spacing", "number", "median distance of a point to its nearest neighbour"),
+    _k("segmentation.link", "number", "the link distance of the connectivity (0: labels given)"),
+    _k("segmentation.noise_scale", "number", "the scan's noise scale"),
+    _k("segmentation.labels", "integers", "each point's object (0, 1, ...) or -1, in the input's order"),
+    _k("segmentation.kinds", "integers", "each point's kind: 0 object, 1 plane, 2 clutter, 3 outlier"),
+    _k("segmentation.message", "string", "what was found, in words"),
 )
 
 _BY_PARENT: dict[str, list[Key]] = {}
@@ -290,13 +324,13 @@ def _expected(key: Key) -> str:
     return text
 
 
-def _walk(obj: Mapping, parent: str, where: str, source: str) -> None:
+def _walk(obj: Mapping, parent: str, where: str, source: str, optional: tuple[str, ...] = ()) -> None:
     for key in _BY_PARENT.get(parent, ()):
         name = key.path.rsplit(".", 1)[-1]
         shown = f"{where}.{name}" if where else name
         value = obj.get(name)
         if value is None:
-            if key.required:
+            if key.required and key.path not in optional:
                 raise _fail(source, shown, _expected(key), "nothing" if name not in obj else "null")
             continue
         if not _TYPES[key.type].test(value):
@@ -414,6 +448,8 @@ def validate_result(data: _Data, source: str = "result") -> _Data:
                                 f'{_got(data.get("format")) if "format" in data else "no format"}). '
                                 "Pass a result written by ipfit.")
     _check_depth(data, source)
+    if isinstance(data.get("objects"), list):
+        return _validate_scene(data, source)
     _walk(data, "", "", source)
     rows = [[int(e) for e in row] for row in data["exponents"]]
     dim = len(rows[0])
@@ -462,6 +498,27 @@ def validate_result(data: _Data, source: str = "result") -> _Data:
                         _got(entry["degree"]))
         _check_polynomial(coef, dim, g, f"{where}.coefficients", source)
         _check_normalization(entry.get("normalization"), dim, f"{where}.normalization", source)
+    return data
+
+
+def _validate_scene(data, source: str):
+    """A scene: its own keys, then every object as a complete result of one dimension."""
+    _walk(data, "", "", source, optional=("exponents", "coefficients"))
+    dims = set()
+    for i, entry in enumerate(data["objects"]):
+        validate_result(entry, f"{source}: objects[{i}]")
+        dim = len(entry["exponents"][0])
+        dims.add(dim)
+        box = entry.get("bounding_box")
+        if box is not None and len(box[0]) != dim:
+            raise _fail(source, f"objects[{i}].bounding_box", f"{dim} values per corner, one per axis",
+                        f"{len(box[0])} values")
+    for i, plane in enumerate(data.get("planes") or ()):
+        if isinstance(plane.get("polynomial"), Mapping):
+            validate_result(plane["polynomial"], f"{source}: planes[{i}].polynomial")
+    if len(dims) > 1 or (dims and data.get("dim") is not None and data["dim"] not in dims):
+        raise _fail(source, "objects", "objects of one dimension, the scene's", "objects of "
+                    + " and ".join(f"{d}D" for d in sorted(dims | ({data["dim"]} if data.get("dim") else set()))))
     return data
 
 

@@ -371,6 +371,9 @@ class ImplicitPolynomial:
         corrupt file gives one :class:`~ipfit.InvalidInputError` naming the bad key.
         """
         data = validate_result(data, source)
+        if isinstance(data.get("objects"), list):  # a scene (ipfit fit --objects): one result per object
+            raise InvalidInputError(f"{source}: a scene of {len(data['objects'])} objects, not one polynomial. Read "
+                                    "it with ipfit.load_scene, or pick one of its \"objects\".")
         norm = data.get("normalization")
         normalization = Normalization(norm["center"], norm["scale"]) if norm else None
         measures = data.get("measures")

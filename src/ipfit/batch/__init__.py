@@ -95,7 +95,12 @@ __all__ = ["fit_many", "BatchResult", "FitSettings", "shape_seed", "shape_rng", 
            "unique_names",
            "COLUMNS", "THREAD_ENV", "GENERATED_PREFIX", "MAX_GENERATED", "RESERVED_NAMES", "MANIFEST",
            "CONNECT_TIMEOUT", "LOGGER", "max_workers", "write_summary", "dask_warnings_logged",
-           "write_thumbnail"]
+           "write_thumbnail", "client_for", "require_distributed"]
+
+
+#: A Dask client for a run: the caller's ``client``, a connection to ``scheduler`` (checked, one line
+#: when it cannot be reached), or an embedded cluster of ``workers`` processes (stopped on exit).
+client_for = _client_for
 
 
 # -- outputs ---------------------------------------------------------------------------------------

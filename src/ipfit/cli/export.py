@@ -32,6 +32,10 @@ def run(args: argparse.Namespace) -> int:
     from ..analysis.codegen import to_source
     from ..degree.results import result_view
     from ._common import Outputs, recorded_sources
+    from ._scene import is_scene_file, run_export
+
+    if is_scene_file(args.result):  # a scene: every object in one page, figure or export (cli/_scene.py)
+        return run_export(args)
 
     view = result_view(args.result)
     outputs = Outputs([args.output], inputs=[args.result, *recorded_sources(view.data)]) if args.output else None

@@ -79,6 +79,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("-q", "--quiet", action="store_true", help="no progress output")
     parser.add_argument("--max-points", type=positive_int, metavar="N",
                         help="keep a random subset of N points of a larger file (fixed seed; for big scans)")
+    from ._scene import add_fit_arguments
+
+    add_fit_arguments(parser)
 
 
 def add_fit_options(parser: argparse.ArgumentParser) -> None:
@@ -243,6 +246,12 @@ def run(args: argparse.Namespace) -> int:
     from ..degree.adaptive import fit_adaptive
     from ..exceptions import InvalidInputError
 
+    if args.objects:  # a scene: every object its own fit (cli/_scene.py)
+        from ._scene import run_fit
+
+        return run_fit(args, search_settings(args), _parse_degree, _OPTION_NAMES)
+    if args.keep_planes or args.workers is not None or args.scheduler is not None:
+        raise InvalidInputError("--keep-planes/--workers/--scheduler: they apply to a scene; add --objects.")
     data = load(args.input, max_points=args.max_points)
     _report_kept(data, args.max_points)
     points, normals = data.points, data.normals

@@ -43,6 +43,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--resolution", type=positive_int, metavar="N",
                         help="grid nodes along the box's longest side (default 128 in 3D, 512 in 2D)")
     add_trim_argument(parser)
+    parser.add_argument("--combined", action="store_true",
+                        help="a scene: one file holding every object's zero set (default: OUT-object-I.EXT each)")
 
 
 def trim_distance(text: str):
@@ -219,6 +221,10 @@ def run(args: argparse.Namespace) -> int:
     from ..degree.results import result_view
     from ..exceptions import InvalidInputError
     from ..zeroset.extract import data_bounds, extract_zero_set
+    from ._scene import is_scene_file, run_mesh
+
+    if is_scene_file(args.result):  # a scene: every object in one page, figure or export (cli/_scene.py)
+        return run_mesh(args, check_output_suffix)
 
     view = result_view(args.result)
     check_output_suffix(args.output, view.dim)

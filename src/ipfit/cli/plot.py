@@ -66,7 +66,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from ..degree.results import result_view
     from ..viz.plotting import check_figure_path, plot_result
+    from ._scene import is_scene_file, run_plot
     from .mesh import check_trim_with_points, drawing_trim, load_points, trim_data, trimmed_note
+
+    if is_scene_file(args.result):  # a scene: every object in one page, figure or export (cli/_scene.py)
+        return run_plot(args)
 
     check_figure_path(args.output, "-o/--output")
     check_trim_with_points(args)

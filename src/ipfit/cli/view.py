@@ -54,6 +54,10 @@ def run(args: argparse.Namespace) -> int:
     from ..exceptions import InvalidInputError
     from ..viz.viewer import MAX_FACES, write_html
     from ._common import Outputs, recorded_sources
+    from ._scene import is_scene_file, run_view
+
+    if is_scene_file(args.result):  # a scene: every object in one page, figure or export (cli/_scene.py)
+        return run_view(args)
 
     check_trim_with_points(args)
     view = result_view(args.result)

@@ -253,8 +253,11 @@ def result_view(result: Any, source: str | None = None) -> ResultView:
         return result
     source = source or _source_of(result)
     data = load_result(result, source)
-    poly = ImplicitPolynomial.from_dict(data, source)
     kind = ReadError if _is_path(result) else InvalidInputError
+    if isinstance(data.get("objects"), list):  # a scene holds one result per object, no polynomial of its own
+        raise kind(f"{source}: a scene of {len(data['objects'])} objects, not one polynomial. Read it with "
+                   "ipfit.load_scene, or pick one of its \"objects\".")
+    poly = ImplicitPolynomial.from_dict(data, source)
 
     def build(coefficients, own_norm) -> ImplicitPolynomial:
         # Entries share the top-level normalisation unless they carry their own.

@@ -19,7 +19,8 @@ from ..exceptions import InvalidInputError, ReadError
 from ..normals import contour_normals
 from ._base import MIN_POINTS, Raw, short
 
-__all__ = ["trace_silhouette", "read_image", "check_image_pixels", "CONTOUR_SPAN", "IMAGE_SUFFIXES",
+__all__ = ["trace_silhouette", "trace_silhouettes", "read_silhouettes", "read_image", "check_image_pixels",
+           "CONTOUR_SPAN", "IMAGE_SUFFIXES",
            "MAX_IMAGE_PIXELS", "MIN_SHAPE_POINTS"]
 
 #: Central-difference span for the normals of traced contours (see ``contour_normals``):
@@ -178,3 +179,103 @@ def _alpha_carries_shape(alpha: NDArray) -> bool:
         return False
     border = np.concatenate([alpha[0], alpha[-1], alpha[:, 0], alpha[:, -1]])
     return bool(np.mean(border < (lo + hi) / 2) > 0.5)
+
+
+# -- every silhouette of an image (ipfit fit --objects, ipfit.fit_scene) ------------------------
+def trace_silhouettes(image: ArrayLike) -> list[tuple[NDArray[np.float64], NDArray[np.float64]]]:
+    """The outer boundary of every separate shape in an image, largest first, with outward normals.
+
+    The foreground is found as :func:`trace_silhouette` finds it (Otsu, the class rarer on the
+    border); its pieces are told apart by ``skimage.measure.label`` (8-connected), and each is
+    traced alone, at subpixel precision, in the grey levels around it. Shapes of fewer than
+    :data:`MIN_SHAPE_POINTS` boundary points are specks, left out. Coordinates as
+    :func:`trace_silhouette`'s (pixels, x to the right, y up).
+
+    Raises
+    ------
+    InvalidInputError
+        If the image holds no shape.
+    """
+    from skimage import measure
+    from skimage.morphology import dilation
+
+    img = np.asarray(image)
+    if img.ndim != 2 or min(img.shape) < 1 or img.dtype.kind not in "biuf":
+        raise error("image", "a 2D array of grey levels", f"shape {img.shape} and dtype {img.dtype}")
+    check_image_pixels(img.shape[1], img.shape[0])
+    grey = np.zeros((img.shape[0] + 2, img.shape[1] + 2))
+    grey[1:-1, 1:-1] = img
+    lo, hi = float(img.min()), float(img.max())
+    if not hi > lo:
+        raise InvalidInputError(f"image: the image is uniform, no shape to trace. {_USE_A_SILHOUETTE}")
+    inner = grey[1:-1, 1:-1]
+    inner -= lo
+    inner /= hi - lo
+    if np.all((inner == 0.0) | (inner == 1.0)):
+        level = 0.5
+    else:
+        from skimage.filters import threshold_otsu
+
+        level = float(threshold_otsu(inner))
+    border = np.concatenate([inner[0], inner[-1], inner[:, 0], inner[:, -1]])
+    if (border > level).mean() > 0.5:
+        np.subtract(1.0, inner, out=inner)
+        level = 1.0 - level
+    grey[0], grey[-1], grey[:, 0], grey[:, -1] = 0.0, 0.0, 0.0, 0.0
+    labels = measure.label(grey > level, connectivity=2)
+    shapes = []
+    for region in measure.regionprops(labels):
+        r0, c0, r1, c1 = region.bbox
+        r0, c0, r1, c1 = max(r0 - 2, 0), max(c0 - 2, 0), min(r1 + 2, grey.shape[0]), min(c1 + 2, grey.shape[1])
+        # this shape's grey levels and one ring of pixels round it; every other shape is background
+        near = dilation(labels[r0:r1, c0:c1] == region.label, np.ones((3, 3), dtype=bool))
+        window = np.where(near, grey[r0:r1, c0:c1], 0.0)
+        best, best_area = None, 0.0
+        for c in measure.find_contours(window, level):
+            if len(c) < MIN_POINTS + 1:
+                continue
+            area = 0.5 * abs(float(np.sum(c[:, 1] * np.roll(c[:, 0], -1) - np.roll(c[:, 1], -1) * c[:, 0])))
+            if area > best_area:
+                best, best_area = c, area
+        if best is None:
+            continue
+        if np.array_equal(best[0], best[-1]):
+            best = best[:-1]
+        points = np.column_stack([best[:, 1] + c0 - 1.0, -(best[:, 0] + r0 - 1.0)])
+        keep = np.ones(len(points), dtype=bool)
+        keep[1:] = np.any(np.diff(points, axis=0) != 0, axis=1)
+        points = points[keep]
+        if len(points) >= MIN_SHAPE_POINTS:
+            shapes.append((best_area, points))
+    if not shapes:
+        raise InvalidInputError(f"image: no shape in the image. {_USE_A_SILHOUETTE}")
+    shapes.sort(key=lambda s: -s[0])
+    return [(p, contour_normals(p, span=min(CONTOUR_SPAN, (len(p) - 1) // 2))) for _, p in shapes]
+
+
+def read_silhouettes(path: str | Path) -> list[tuple[NDArray[np.float64], NDArray[np.float64]]]:
+    """Every separate silhouette of an image file (:func:`trace_silhouettes`), read as
+    :func:`read_image` reads one; errors are :class:`~ipfit.ReadError` naming the file."""
+    from PIL import Image, UnidentifiedImageError
+
+    path = Path(path)
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise ReadError(f"{path}: cannot be read ({short(exc)}). Check the path.") from None
+    try:
+        with _open_image(raw) as im:
+            check_image_pixels(*im.size)
+            im.load()
+            grey = _grey_levels(im)
+        return trace_silhouettes(grey)
+    except UnidentifiedImageError:
+        raise ReadError(f"{path}: not a readable image (Pillow does not recognise its content). "
+                        "Check that the file is complete and of the format its extension says.") from None
+    except Image.DecompressionBombError:
+        raise ReadError(f"{path}: expected at most {MAX_IMAGE_PIXELS:,} pixels. Downscale the image.") from None
+    except (OSError, ValueError, SyntaxError) as exc:
+        if isinstance(exc, InvalidInputError):
+            raise ReadError(f"{path}: {str(exc).removeprefix('image: ')}") from None
+        raise ReadError(f"{path}: not a readable image ({short(exc)}). "
+                        "Check that the file is complete and of the format its extension says.") from None

@@ -1,0 +1,234 @@
+"""Scenes (issue 36): several objects in one scan, each found and fitted with its own polynomial."""
+
+import json
+
+import numpy as np
+import pytest
+
+import ipfit
+from ipfit.cli import main
+from ipfit.exceptions import InvalidInputError, ReadError
+from ipfit.scene import fit_scene, load_scene, segment
+from ipfit.scene.segment import CLUTTER, OBJECT, OUTLIER, PLANE, PlaneModel
+
+
+def _sphere(rng, n, center, radius):
+    v = rng.normal(size=(n, 3))
+    return np.asarray(center) + radius * v / np.linalg.norm(v, axis=1, keepdims=True)
+
+
+def _two_spheres_on_a_plane(seed, gap_centres=2.8, n_plane=2500, noise=0.003, outliers=0.05):
+    """Sphere A (r 1 at the origin), sphere B (r 0.5, ``gap_centres`` along x), a plane under them;
+    noise and uniform outliers. Returns (points, truth): 0 A, 1 B, -1 plane, -2 outlier."""
+    rng = np.random.default_rng(seed)
+    a = _sphere(rng, 1500, [0, 0, 0], 1.0)
+    b = _sphere(rng, 700, [gap_centres, 0, -0.5], 0.5)
+    plane = np.column_stack([rng.uniform(-2, 4.5, n_plane), rng.uniform(-2.5, 2.5, n_plane), np.full(n_plane, -1.1)])
+    clean = np.vstack([a, b, plane])
+    pts = clean + rng.normal(0, noise, clean.shape)
+    truth = np.concatenate([np.zeros(len(a)), np.ones(len(b)), np.full(n_plane, -1)]).astype(int)
+    n_out = int(outliers * len(pts))
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    pts = np.vstack([pts, rng.uniform(lo - 0.2 * (hi - lo), hi + 0.2 * (hi - lo), (n_out, 3))])
+    return pts, np.concatenate([truth, np.full(n_out, -2)])
+
+
+def _radius(poly, center):
+    """The median distance from ``center`` of the polynomial's zero set (its vertices)."""
+    zs = ipfit.extract_zero_set(poly, bounds=np.column_stack([np.asarray(center) - 2.0, np.asarray(center) + 2.0]),
+                                resolution=64)
+    return float(np.median(np.linalg.norm(zs.vertices - center, axis=1)))
+
+
+# -- segmentation --------------------------------------------------------------------------------
+def test_plane_model_speaks_scikit_image_protocol():
+    from skimage.measure import ransac
+
+    rng = np.random.default_rng(0)
+    plane = np.column_stack([rng.uniform(-1, 1, (200, 2)), np.zeros(200)]) @ np.linalg.qr(rng.normal(size=(3, 3)))[0]
+    strays = rng.uniform(-1, 1, (60, 3))
+    model, inliers = ransac(np.vstack([plane, strays]), PlaneModel, min_samples=3, residual_threshold=1e-6, rng=0)
+    assert inliers[:200].all() and inliers[200:].sum() <= 1
+    assert model.residuals(plane).max() < 1e-9
+    assert not PlaneModel.from_estimate([[0.0, 0, 0], [1, 1, 1], [2, 2, 2]])  # collinear: no plane
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_two_spheres_and_a_plane_segmented(seed):
+    pts, truth = _two_spheres_on_a_plane(seed)
+    seg = segment(pts, rng=seed)
+    assert len(seg.objects) == 2
+    assert len(seg.planes) == 1
+    normal = seg.planes[0].normal
+    assert abs(abs(normal[2]) - 1) < 1e-3 and abs(abs(seg.planes[0].offset) - 1.1) < 0.01
+    for k, cluster in enumerate(seg.objects):  # largest first: the big sphere is object 0
+        mine = truth[cluster.indices]
+        assert np.mean(mine == k) > 0.97  # no object spans the other sphere or much of the plane
+        assert np.mean(seg.labels[truth == k] == k) > 0.9
+        assert not cluster.touching
+    assert np.mean(seg.kinds[truth == -1] == PLANE) > 0.93  # a few of its edge points read as outliers
+    assert np.mean(seg.kinds[truth == -2] == OUTLIER) > 0.8
+    assert set(np.unique(seg.kinds)) <= {OBJECT, PLANE, CLUTTER, OUTLIER}
+
+
+@pytest.mark.parametrize("seed", [0, 3])
+def test_two_spheres_and_a_plane_fitted_radii_to_one_percent(seed):
+    pts, _ = _two_spheres_on_a_plane(seed)
+    scene = fit_scene(pts, rng=seed)
+    assert len(scene) == 2 and len(scene.segmentation.planes) == 1
+    for result, center, radius in zip(scene, [(0, 0, 0), (2.8, 0, -0.5)], [1.0, 0.5], strict=True):
+        assert result.selected_degree == 2
+        assert _radius(result.polynomial, center) == pytest.approx(radius, rel=0.01)
+    assert scene.touching == ()
+    assert "2 objects" in scene.message and "1 plane removed" in scene.message
+
+
+def test_touching_objects_reported_as_one_and_said_so(capsys, tmp_path):
+    rng = np.random.default_rng(5)
+    apart = np.vstack([_sphere(rng, 1500, [0, 0, 0], 1.0), _sphere(rng, 1500, [2.6, 0, 0], 1.0)])
+    touching = np.vstack([_sphere(rng, 1500, [0, 0, 0], 1.0), _sphere(rng, 1500, [2.0, 0, 0], 1.0)])
+    one = _sphere(rng, 3000, [0, 0, 0], 1.0) * [1.6, 1.0, 0.8]  # one body of the same size: no neck
+    assert [c.touching for c in segment(apart, outliers="none").objects] == [False, False]
+    assert [c.touching for c in segment(one, outliers="none").objects] == [False]
+    seg = segment(touching, outliers="none")
+    assert len(seg.objects) == 1 and seg.objects[0].touching
+    assert "touch" in seg.objects[0].note
+    path = tmp_path / "touching.xyz"
+    np.savetxt(path, touching)
+    code = main(["fit", str(path), "--objects", "-o", str(tmp_path / "t"), "--method", "3l", "--max-degree", "4",
+                 "--no-picture", "--no-zero-set", "--outliers", "none"])
+    assert code == 0
+    out = capsys.readouterr().out
+    assert "object 0: may be two objects that touch" in out and "found 1 object" in out
+    data = json.loads((tmp_path / "t.json").read_text())
+    assert data["objects"][0]["touching"] is True and "touch" in data["objects"][0]["note"]
+    assert "may be two touching objects" in data["segmentation"]["message"]
+
+
+# -- images --------------------------------------------------------------------------------------
+def _three_shapes_png(path):
+    from PIL import Image
+    from skimage.draw import disk, ellipse, polygon
+
+    img = np.full((220, 320), 255, dtype=np.uint8)
+    img[disk((60, 60), 40)] = 0  # centre column 60, row 60 -> (60, -60)
+    img[ellipse(150, 170, 35, 70)] = 0  # (170, -150)
+    img[polygon([20, 100, 100], [230, 200, 300])] = 0  # a triangle, centroid near (243, -73)
+    img[205:208, 5:8] = 0  # a speck: not a shape
+    Image.fromarray(img).save(path)
+
+
+def test_image_with_three_silhouettes(tmp_path):
+    from ipfit.io.silhouettes import read_silhouettes
+
+    path = tmp_path / "three.png"
+    _three_shapes_png(path)
+    shapes = read_silhouettes(path)
+    assert len(shapes) == 3
+    centres = sorted(tuple(np.round(p.mean(axis=0) / 5) * 5) for p, _ in shapes)
+    assert centres[0] == (60.0, -60.0) and centres[1] == (170.0, -150.0)
+    assert abs(centres[2][0] - 243) < 6 and abs(centres[2][1] + 73) < 6
+    # the single-shape reader still reads the largest only (the ellipse)
+    one = ipfit.read_points(path)
+    assert np.allclose(one.points.mean(axis=0), [170, -150], atol=1.0)
+    points = np.vstack([p for p, _ in shapes])
+    labels = np.concatenate([np.full(len(p), i) for i, (p, _) in enumerate(shapes)])
+    scene = fit_scene(points, np.vstack([n for _, n in shapes]), labels=labels, method="3l", max_degree=4)
+    assert len(scene) == 3
+    disc = next(r for r, (p, _) in zip(scene, shapes, strict=True) if abs(p.mean(axis=0)[0] - 60) < 3)
+    vertices = np.vstack(ipfit.extract_zero_set(disc.polynomial, bounds=[[0, 120], [-120, 0]]).curves)
+    assert np.median(np.linalg.norm(vertices - [60, -60], axis=1)) == pytest.approx(40, abs=1.0)
+
+
+# -- the result ----------------------------------------------------------------------------------
+def test_scene_json_round_trip(tmp_path):
+    rng = np.random.default_rng(2)
+    t = np.linspace(0, 2 * np.pi, 150, endpoint=False)
+    ring = np.column_stack([np.cos(t), np.sin(t)])
+    pts = np.vstack([ring, 0.5 * ring + [4.0, 1.0], rng.uniform(-1, 5, (3, 2)) * [1, 0.1] + [0, 8]])
+    scene = fit_scene(pts, method="3l", max_degree=4, outliers="none")
+    assert len(scene) == 2 and len(scene.segmentation.clutter) >= 1
+    data = scene.to_dict("rings.csv")
+    path = tmp_path / "scene.json"
+    path.write_text(json.dumps(data))
+    assert ipfit.load_result(path)["objects"][1]["n_points"] == 150
+    view = load_scene(path)
+    assert len(view) == 2 and view.dim == 2
+    probe = rng.uniform(-1, 5, (20, 2))
+    for obj, result, box in zip(view.objects, scene, scene.boxes, strict=True):
+        assert np.allclose(obj.polynomial(probe), result.polynomial(probe), rtol=1e-12, atol=1e-14)
+        assert np.array_equal(np.asarray(obj.data["bounding_box"]), box)
+        ipfit.load_result(dict(obj.data))  # each object alone is a complete result
+    assert np.array_equal(view.labels, scene.segmentation.labels)
+    # a result of one shape is not a scene, a scene is not one polynomial, and a corrupt scene is refused
+    with pytest.raises(InvalidInputError, match="not a scene"):
+        load_scene(data["objects"][0])
+    with pytest.raises(InvalidInputError, match="scene of 2 objects"):
+        ipfit.degree.results.result_view(data)
+    data["objects"][1]["bounding_box"] = [[0.0, 0.0, 0.0], [1.0, 1.0, 1.0]]
+    path.write_text(json.dumps(data))
+    with pytest.raises(ReadError, match=r'objects\[1\].bounding_box'):
+        load_scene(path)
+
+
+# -- the command line ----------------------------------------------------------------------------
+def test_cli_objects_end_to_end(tmp_path, capsys):
+    rng = np.random.default_rng(3)
+    plane = np.column_stack([rng.uniform(-2, 4, 1500), rng.uniform(-2, 2, 1500), np.full(1500, -1.2)])
+    pts = np.vstack([_sphere(rng, 600, [0, 0, 0], 1.0), _sphere(rng, 300, [2.8, 0, -0.5], 0.5), plane])
+    scan = tmp_path / "scan.xyz"
+    np.savetxt(scan, pts)
+    prefix = tmp_path / "out" / "scan"
+    assert main(["fit", str(scan), "--objects", "--keep-planes", "-o", str(prefix), "--method", "3l",
+                 "--max-degree", "2"]) == 0
+    out = capsys.readouterr().out
+    assert "found 2 objects; 1 plane removed" in out
+    assert sorted(p.name for p in prefix.parent.iterdir()) == ["scan.json", "scan.ply", "scan.png"]
+    data = json.loads((tmp_path / "out" / "scan.json").read_text())
+    # a random sample leaves a few points farther from the rest than the link: clutter, not fitted
+    assert [o["n_points"] for o in data["objects"]] == [pytest.approx(600, abs=10), pytest.approx(300, abs=6)]
+    assert data["planes"][0]["polynomial"]["degree"] == 1
+    assert data["input"]["path"] == str(scan.resolve())
+    result = str(tmp_path / "out" / "scan.json")
+    assert main(["mesh", result, "-o", str(tmp_path / "m.ply")]) == 0
+    assert (tmp_path / "m-object-0.ply").exists() and (tmp_path / "m-object-1.ply").exists()
+    assert main(["mesh", result, "-o", str(tmp_path / "all.obj"), "--combined"]) == 0
+    assert main(["plot", result, "-o", str(tmp_path / "p.png")]) == 0
+    assert main(["export", result, "--to", "python", "-o", str(tmp_path / "f.py")]) == 0
+    namespace: dict = {}
+    exec((tmp_path / "f.py").read_text(), namespace)
+
+    def distance(i, point):  # first-order distance |f| / |grad f| with object i's exported functions
+        return abs(namespace[f"f_{i}"](*point)) / np.linalg.norm(namespace[f"gradient_{i}"](*point))
+
+    assert distance(0, (1.0, 0.0, 0.0)) < 0.01 and distance(1, (2.8, 0.5, -0.5)) < 0.01
+    assert distance(0, (2.8, 0.5, -0.5)) > 0.3  # object 0's function is not object 1's
+    capsys.readouterr()
+    assert main(["view", result, "-o", str(tmp_path / "v.html")]) == 0
+    page = (tmp_path / "v.html").read_text()
+    assert page.count('"legendgroup":"object 0"') >= 1 and '"legendgroup":"object 1"' in page
+
+
+def test_cli_objects_bad_input_writes_nothing(tmp_path, capsys):
+    rng = np.random.default_rng(4)
+    flat = np.column_stack([rng.uniform(-2, 2, (1500, 2)), np.zeros(1500)])  # a plane and nothing on it
+    scan = tmp_path / "flat.xyz"
+    np.savetxt(scan, flat)
+    assert main(["fit", str(scan), "--objects", "-o", str(tmp_path / "out" / "flat"), "--method", "3l"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "expected at least one object" in err[0]
+    assert not (tmp_path / "out").exists() or not any((tmp_path / "out").iterdir())
+    assert main(["fit", str(scan), "--workers", "2", "-o", str(tmp_path / "x")]) == 2
+    assert "add --objects" in capsys.readouterr().err
+    assert not any(p.name.startswith("x") for p in tmp_path.iterdir())
+
+
+@pytest.mark.slow
+def test_fit_scene_on_dask_matches_the_local_fit():
+    pytest.importorskip("distributed")
+    pts, _ = _two_spheres_on_a_plane(0, n_plane=1500)
+    here = fit_scene(pts, method="3l", max_degree=4, rng=7)
+    there = fit_scene(pts, method="3l", max_degree=4, rng=7, workers=1)
+    assert [r.selected_degree for r in here] == [r.selected_degree for r in there]
+    for a, b in zip(here, there, strict=True):
+        assert np.allclose(a.polynomial.coefficients, b.polynomial.coefficients, atol=1e-8)
