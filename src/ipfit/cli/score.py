@@ -142,6 +142,7 @@ def _stored_quality(view, args, points, faces, ordered: bool):
 
     from ..zeroset.extract import DEFAULT_RESOLUTION
     from ..zeroset.quality import Quality
+    from ..zeroset.topology import Topology
 
     if args.degree is None:
         stored = view.data.get("quality")
@@ -162,6 +163,8 @@ def _stored_quality(view, args, points, faces, ordered: bool):
     for name in ("chamfer", "data_to_zero_set", "zero_set_to_data"):  # to_dict wrote inf as null
         values[name] = math.inf if values.get(name) is None else values[name]
     values["spurious"] = tuple(dict(c) for c in stored.get("spurious") or ())
+    for name in ("topology", "data_topology"):
+        values[name] = Topology.from_dict(stored[name]) if stored.get(name) else None
     return Quality(**values)
 
 
