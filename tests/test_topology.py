@@ -238,3 +238,72 @@ def test_contour_file_of_several_loops(tmp_path, separator):
     got = sorted(map(tuple, np.hstack([cloud.points, cloud.normals]).round(9)))
     assert got == sorted(map(tuple, rows.round(9)))
     np.testing.assert_array_equal(cloud.points[:200], ring[:200])
+
+
+# -- in the rule ----------------------------------------------------------------------------------
+
+def _dumbbell(w: float = 0.2, r: float = 1.0, c: float = 2.0, step: float = 0.03) -> np.ndarray:
+    """Two unit discs at x = ±2 joined by a bar of half-width ``w``: an ordered outline."""
+    a, t0 = np.sqrt(r * r - w * w), np.arcsin(w / r)
+    arc = np.linspace(np.pi - t0, -np.pi + t0, 400)
+    dense = np.vstack([np.c_[np.linspace(-c + a, c - a, 200), np.full(200, w)],
+                       np.c_[c + r * np.cos(arc), r * np.sin(arc)],
+                       np.c_[np.linspace(c - a, -c + a, 200), np.full(200, -w)],
+                       np.c_[-c - r * np.cos(arc), -r * np.sin(arc)]])
+    closed = np.vstack([dense, dense[:1]])
+    s = np.r_[0, np.cumsum(np.linalg.norm(np.diff(closed, axis=0), axis=1))]
+    at = np.arange(0, s[-1], step)
+    return np.c_[np.interp(at, s, closed[:, 0]), np.interp(at, s, closed[:, 1])]
+
+
+def _neck_broken(poly) -> bool:
+    """The zero set cuts the bar: f has another sign at the neck's middle than in the discs."""
+    f = poly([[0.0, 0.0], [2.0, 0.0], [-2.0, 0.0]])
+    return bool(np.sign(f[0]) != np.sign(f[1]) and np.sign(f[1]) == np.sign(f[2]))
+
+
+def test_dumbbell_whose_neck_a_low_degree_breaks():
+    from ipfit import fit_adaptive
+    from ipfit.degree.rules import CaptureRule
+    from ipfit.normals import contour_normals
+
+    class Blind(CaptureRule):  # the capture rule before the topology check
+        checks_topology = False
+
+    points = _dumbbell()
+    normals = contour_normals(points)
+    blind = fit_adaptive(points, normals, max_degree=6, ordered_contour=True, rule=Blind(), rng=0)
+    four = blind.at_degree(4)
+    # the reported topology agrees with the polynomial's signs: two loops where the neck is cut
+    assert _neck_broken(four.polynomial) and four.quality.topology.loops == 2
+    assert four.quality.topology_matches is False and not four.cleanup  # blind: nothing to repair
+    result = fit_adaptive(points, normals, max_degree=6, ordered_contour=True, rng=0)
+    repaired = result.at_degree(4)
+    assert repaired.cleanup and repaired.cleanup[0]["target"] == "topology"  # its fit had two loops too
+    for entry in result.degrees:
+        loops = entry.quality.topology.loops
+        assert (loops == 2) == _neck_broken(entry.polynomial) or loops not in (1, 2)
+        if entry.quality.topology_matches is False:
+            assert entry.reason.startswith("rejected") and "loops where the data has 1" in entry.reason
+    chosen = result.at_degree(result.selected_degree)
+    assert chosen.quality.topology.loops == 1 and not _neck_broken(chosen.polynomial)
+    assert chosen.quality.f_score >= 0.99 and result.success
+
+
+def test_the_paper_rule_measures_nothing_and_the_rules_check_topology():
+    from ipfit.degree.rules import CAPTURE, GEOMETRIC, PAPER, is_clean
+
+    assert (PAPER.measured, PAPER.checks_topology) == (False, False)
+    assert CAPTURE.checks_topology and GEOMETRIC.checks_topology
+    ring = _ring()
+    pair = synthetic.from_terms(2, 4, _times(_circle_terms(0.4, -0.5), _circle_terms(0.4, 0.5)))
+    q = quality(pair, ring, ordered_contour=True)  # two loops side by side where the data nests them
+    assert q.topology_matches is False
+    assert not is_clean(q) and not is_clean(q, ignore_specks=False)
+    # a bare cloud's estimate is reported but never held against a zero set: two circles closer
+    # than the estimate's scales look like one band (one loop) to it
+    close = _ring(300, radii=(1.0, 0.97))
+    both = synthetic.from_terms(2, 4, _times(_circle_terms(1.0), _circle_terms(0.97)))
+    q = quality(both, close[np.random.default_rng(0).permutation(len(close))])
+    assert (q.data_topology.loops, q.data_topology.confidence, q.topology.loops) == (1, "medium", 2)
+    assert q.topology_matches is False and CAPTURE.is_clean(q) and GEOMETRIC.is_clean(q)

@@ -90,7 +90,8 @@ class Topology:
     nesting : 2D: the depth of each loop (0: inside no other loop; 1: inside one...), sorted.
     euler, genus : 3D: χ and g of each closed component, sorted by genus then χ; a genus is
         None where χ is odd (not a closed orientable surface). For an open mesh of the data,
-        of the component with its holes capped.
+        of every component with its holes capped (and a zero set is compared with that closed
+        surface: its openness is not).
     ignored : specks left out (a zero set's), or tiny pieces left out of an estimate (bare data).
     source : "zero set", or the data's: "contour", "silhouette", "mesh", "points", "none".
     confidence : one of :data:`CONFIDENCES` (a zero set's own topology is "high").
@@ -122,7 +123,9 @@ class Topology:
         cloud's genus, empty here) is not compared."""
         if self.confidence in ("low", "unknown"):
             return None
-        if (self.components, self.open) != (other.components, other.open):
+        # an open mesh stands for the closed surface its holes capped bound: its openness is not compared
+        capped = self.dim == 3 and self.source == "mesh" and self.open > 0
+        if self.components != other.components or (not capped and self.open != other.open):
             return False
         if self.dim == 2:
             return self.nesting == other.nesting if self.nesting or not self.loops else True
@@ -486,6 +489,11 @@ def topology_samples(poly: ImplicitPolynomial, cloud: Cloud, *, ordered_contour:
             if len(touches[touches > 0]) >= 2 or whole:
                 idx = np.argwhere(mask) + [sl.start for sl in grown]
                 regions.append(idx)
+    return _spread_places(regions, nodes, cloud, most)
+
+
+def _spread_places(regions: list[NDArray], nodes: list[NDArray], cloud: Cloud, most: int) -> NDArray[np.float64]:
+    """An equal share of ``most`` places per region (raster indices), farthest from the data first."""
     if not regions:
         return np.empty((0, cloud.dim))
     share = max(1, most // len(regions))
