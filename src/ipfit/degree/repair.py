@@ -58,12 +58,12 @@ def _better(trial: DegreeResult, best: DegreeResult, rule: DegreeRule, recall: f
     return (trial_clean, _measured(trial).f_score) > (best_clean, _measured(best).f_score)
 
 
-def _closer(trial: DegreeResult, best: DegreeResult, recall: float, checks_topology: bool = False) -> bool:
+def _closer(trial: DegreeResult, best: DegreeResult, recall: float, fix_topology: bool = False) -> bool:
     """A repair that failed only by leaving specks of spurious zero set (none open, the recall
-    kept, a higher F-score), or with the topology still wrong (for a rule that checks it): the next
+    kept, a higher F-score), or with the topology still wrong (``fix_topology``: the degree's was): the next
     weight, with the specks or the places of the topology held clear too, may finish it."""
     q = _measured(trial)
-    if checks_topology and topology_differs(q):
+    if fix_topology and topology_differs(q):
         return True  # the next weight holds the places of the topology harder (a neck costs recall)
     return (q.n_spurious > 0 and q.closed and q.recall >= recall - RECALL_KEPT
             and q.f_score > _measured(best).f_score)
@@ -111,11 +111,21 @@ def repair(entry: DegreeResult, refit: Callable[..., DegreeResult], options: Sea
     stray = _stray_distance(_measured(entry).tau, cloud, ordered_contour)
     target = "precision" if rule.is_clean(entry.quality) else \
         "topology" if _topology_only(entry, rule) else "spurious components"
+    # only a degree whose own topology was wrong is repaired for it (a clean one stays as before)
+    fix_topology = rule.checks_topology and topology_differs(entry.quality)
     best = current = entry
     places: list[NDArray] = []
     attempts: list[dict[str, Any]] = []
     nfev = entry.nfev
-    for weight in options.cleanup_weights:
+    # A wrong topology gets a round with the stray samples alone, then every weight with its places too.
+    weights = options.cleanup_weights
+    if fix_topology and weights:
+        # A wrong topology: a round with the stray samples alone, then rounds with the places of the
+        # topology too at weights from the first to the last, a geometric step between, each from
+        # the degree's own fit (a round that pulled the shape about is no start for the next).
+        steps = np.geomspace(weights[0], weights[-1], 2 * len(weights) - 1) if len(weights) > 1 else weights
+        weights = (weights[0], *(float(w) for w in steps))
+    for weight in weights:
         # Spurious components first (their samples alone, as many as a bulge would otherwise take).
         found = stray_samples(current.polynomial, cloud, ordered_contour=bool(ordered_contour),
                               distance=stray, spurious_only=_measured(current).n_spurious > 0)
@@ -124,18 +134,18 @@ def repair(entry: DegreeResult, refit: Callable[..., DegreeResult], options: Sea
         # The topology's places join from the second round (or when nothing strays): the stray
         # samples alone often mend it too, and closer to the data (a fish's extra inner loop went
         # at F 1.0 with them alone, at 0.96 with the places held as well).
-        if rule.checks_topology and topology_differs(current.quality) and (attempts or not places):
+        if fix_topology and topology_differs(current.quality) and (attempts or not places):
             inside = topology_samples(current.polynomial, cloud, ordered_contour=bool(ordered_contour))
             if len(inside):
                 places.append(inside)
         if not places:
             break
         trial = refit(options.replace(far_term_weight=weight, start_fits=(), polish_iterations=polish),
-                      current.x, np.concatenate(places))
+                      (entry if fix_topology else current).x, np.concatenate(places))
         nfev += trial.nfev
         attempts.append(_attempt(target, weight, trial, rule))
         if not _better(trial, best, rule, _measured(entry).recall):
-            if not _closer(trial, best, _measured(entry).recall, rule.checks_topology):
+            if not _closer(trial, best, _measured(entry).recall, fix_topology):
                 break  # a weight that did not help: a stronger one pulls the zero set about even more
             current = trial  # on the data but with new specks: the next round holds them clear too
             continue

@@ -116,6 +116,20 @@ class Quality:
             return None
         return self.data_topology.matches(self.topology)
 
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> Quality:
+        """The quality :meth:`to_dict` wrote (a result file's ``quality``): None distances become
+        infinite again, the topologies :class:`~ipfit.zeroset.topology.Topology` objects; keys it
+        does not know (``topology_matches``, which is derived) are left out."""
+        values = {name: data[name] for name in cls.__dataclass_fields__ if name in data}
+        for name in ("chamfer", "data_to_zero_set", "zero_set_to_data"):
+            if name in values and values[name] is None:
+                values[name] = math.inf
+        values["spurious"] = tuple(dict(c) for c in data.get("spurious") or ())
+        for name in ("topology", "data_topology"):
+            values[name] = Topology.from_dict(data[name]) if data.get(name) else None
+        return cls(**values)
+
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready values (infinite distances become None)."""
         out = asdict(self)
