@@ -61,6 +61,10 @@ SPECK_REACH = 2.0
 CONFIDENCES = ("high", "medium", "low", "unknown")
 #: The confidence at which a data topology is held against a zero set (the degree rules).
 ENFORCED = "high"
+#: A mesh of more parts than this has a topology of low confidence (no pairwise intersection test).
+MAX_PARTS = 50
+#: A bare cloud's estimate is made on at most this many of its points (evenly strided).
+ESTIMATE_POINTS = 20_000
 
 
 def is_speck(component: dict, tau: float) -> bool:
@@ -350,7 +354,9 @@ def _mesh_topology(points: NDArray, faces: NDArray) -> Topology:
     # capping each hole with a disc adds one face and no edge or vertex: χ + holes
     capped = [int(euler[i] + holes[i]) for i in range(n_comp)]
     confidence = "high" if not is_open.any() else "medium"
-    if confidence == "high" and n_comp > 1 and _parts_intersect(merged.points, f, labels, n_comp, winding_number):
+    # many parts (a scene, a kit of pieces): which of them a polynomial should keep apart is a guess
+    if confidence == "high" and n_comp > 1 and (
+            n_comp > MAX_PARTS or _parts_intersect(merged.points, f, labels, n_comp, winding_number)):
         confidence = "low"
     chi, genus = _euler_genus(capped)
     return Topology(3, components=n_comp, open=int(is_open.sum()), euler=chi, genus=genus, source="mesh",
@@ -388,11 +394,13 @@ def _points_topology(cloud: Cloud) -> Topology:
     neighbourhood graph (pieces of fewer than 1 % of the points, at least 5, left out as
     strays) and, in 2D, the loops: the holes of the union of discs of that radius around the
     points, with their nesting. Agreeing scales give "medium", else "low"."""
+    if len(cloud) > ESTIMATE_POINTS:  # the neighbourhood graph at 6 spacings grows fast: a stride of the points
+        cloud = Cloud(cloud.points[:: -(-len(cloud) // ESTIMATE_POINTS)])
     spacing = float(np.median(cloud.spacing))
     if not spacing > 0:
         return Topology(cloud.dim, components=0, source="points", confidence="unknown")
     found = [_estimate_at(cloud, k * spacing) for k in (3.0, 6.0)]
-    agree = found[0] == found[1]
+    agree = all(getattr(found[0], k) == getattr(found[1], k) for k in ("components", "open", "nesting"))
     return dataclasses.replace(found[1], confidence="medium" if agree else "low")
 
 
