@@ -320,3 +320,30 @@ def test_ampersand_fits_as_its_outline_and_hole(tmp_path):
     quality = json.loads(prefix.with_suffix(".json").read_text())["quality"]
     assert quality["topology"]["nesting"] == [0, 1] and quality["topology_matches"] is True
     assert quality["f_score"] >= 0.98  # 0.998 with seed 0 (docs/topology.md)
+
+
+def test_topology_samples_find_the_neck_and_the_envelope():
+    import trimesh
+
+    from ipfit.zeroset.topology import topology_samples
+
+    # 2D: a dumbbell outline and two circles in its discs (the neck cut): the places are in the bar
+    points = _dumbbell()
+    pair = synthetic.from_terms(2, 4, _times(_circle_terms(1.0, -2.0), _circle_terms(1.0, 2.0)))
+    places = topology_samples(pair, Cloud(points), ordered_contour=True)
+    assert len(places) and np.all(np.abs(places[:, 0]) < 1.1) and np.all(np.abs(places[:, 1]) < 0.2)
+    # the dumbbell's own outline as a zero set of the right topology: nothing to hold
+    one = synthetic.from_terms(2, 2, {(2, 0): 1 / 9, (0, 2): 1.0, (0, 0): -1.0})  # one loop through the discs
+    assert quality(one, points, ordered_contour=True).topology_matches is True
+    assert len(topology_samples(one, Cloud(points), ordered_contour=True)) == 0
+    # 3D: two spheres apart, one ellipsoid round both (an envelope): the places lie outside both
+    a, b = trimesh.creation.icosphere(2), trimesh.creation.icosphere(2)
+    mesh = trimesh.util.concatenate([a.apply_translation([-1.5, 0, 0]), b.apply_translation([1.5, 0, 0])])
+    envelope = synthetic.from_terms(3, 2, {(2, 0, 0): 1 / 6.25, (0, 2, 0): 1 / 1.44, (0, 0, 2): 1 / 1.44,
+                                           (0, 0, 0): -1.0})
+    cloud = Cloud(mesh.vertices, faces=mesh.faces)
+    assert data_topology(cloud).components == 2
+    places = topology_samples(envelope, cloud)
+    assert len(places)
+    assert np.all(np.minimum(np.linalg.norm(places - [-1.5, 0, 0], axis=1),
+                             np.linalg.norm(places - [1.5, 0, 0], axis=1)) > 1.0)

@@ -52,7 +52,8 @@ from ..polynomial import ImplicitPolynomial
 from .extract import ZeroSet, data_bounds, grid_axes, grid_values
 
 __all__ = ["Topology", "zero_set_topology", "data_topology", "topology_samples", "is_speck",
-           "SPECK_REACH", "CONFIDENCES", "ENFORCED", "describe_mismatch"]
+           "SPECK_REACH", "CONFIDENCES", "ENFORCED", "describe_mismatch", "MAX_PARTS", "ESTIMATE_POINTS",
+           "MAX_INSIDE_FACES"]
 
 
 #: A speck comes within this many τ of the data (see :func:`is_speck`).
@@ -65,6 +66,9 @@ ENFORCED = "high"
 MAX_PARTS = 50
 #: A bare cloud's estimate is made on at most this many of its points (evenly strided).
 ESTIMATE_POINTS = 20_000
+#: The repair's places of the topology need a closed mesh's inside on a raster (winding numbers,
+#: raster nodes × faces): beyond this many faces the repair goes without them.
+MAX_INSIDE_FACES = 200_000
 
 
 def is_speck(component: dict, tau: float) -> bool:
@@ -461,10 +465,12 @@ def topology_samples(poly: ImplicitPolynomial, cloud: Cloud, *, ordered_contour:
     data's inside is not known (it is for an ordered contour of closed loops and a closed mesh).
 
     On a raster over the data's box, a region of disagreement matters when it touches two
-    pieces of the polynomial's inside (a cut neck) or of its outside (a bridge), or when it is a
-    whole piece of either (an extra loop, an extra hole); bands along the data where the zero
-    set is merely a little off do not. Each region that matters gets an equal share of the
-    places, those farthest from the data first (the middle of a neck or of a gap).
+    pieces of the polynomial's inside (a cut neck) or of its outside (a bridge), or two pieces of
+    the data's other side (a cut through the solid between two of its boundaries, an envelope
+    round two parts), or when it is a whole piece of the polynomial's inside or outside (an extra
+    loop, an extra hole); bands along the data where the zero set is merely a little off do not.
+    Each region that matters gets an equal share of the places, those farthest from the data
+    first (the middle of a neck or of a gap).
     """
     inside, nodes, _ = _data_inside(cloud, ordered_contour, margin)
     if inside is None:
@@ -478,11 +484,15 @@ def topology_samples(poly: ImplicitPolynomial, cloud: Cloud, *, ordered_contour:
     structure = ndimage.generate_binary_structure(cloud.dim, 1)
     in_labels, _ = ndimage.label(f_inside, structure)
     out_labels, _ = ndimage.label(~f_inside, structure)
+    data_in, _ = ndimage.label(inside, structure)
+    data_out, _ = ndimage.label(~inside, structure)
     regions = []
-    # data inside, polynomial outside (a cut neck, an extra hole); data outside, polynomial inside
-    # (a bridge, an extra loop): ``same`` labels the polynomial's side the region is on
-    for wrong, same, other in ((inside & ~f_inside, out_labels, in_labels),
-                               (~inside & f_inside, in_labels, out_labels)):
+    # data inside, polynomial outside (a cut neck, a cut through the solid, an extra hole); data
+    # outside, polynomial inside (a bridge across a gap, an envelope round two parts, an extra loop):
+    # ``same`` labels the polynomial's side the region is on, ``other`` its other side, ``across``
+    # the data's other side
+    for wrong, same, other, across in ((inside & ~f_inside, out_labels, in_labels, data_out),
+                                       (~inside & f_inside, in_labels, out_labels, data_in)):
         labels, _ = ndimage.label(wrong, structure)
         for r, where in enumerate(ndimage.find_objects(labels), start=1):
             if where is None:
@@ -492,9 +502,10 @@ def topology_samples(poly: ImplicitPolynomial, cloud: Cloud, *, ordered_contour:
             mask = labels[grown] == r
             ring = ndimage.binary_dilation(mask, structure) & ~mask
             touches = np.unique(other[grown][ring])
+            joins = np.unique(across[grown][ring])
             piece = np.unique(same[grown][mask])
             whole = len(piece) == 1 and int(np.count_nonzero(same == piece[0])) == int(mask.sum())
-            if len(touches[touches > 0]) >= 2 or whole:
+            if len(touches[touches > 0]) >= 2 or len(joins[joins > 0]) >= 2 or whole:
                 idx = np.argwhere(mask) + [sl.start for sl in grown]
                 regions.append(idx)
     return _spread_places(regions, nodes, cloud, most)
@@ -542,6 +553,8 @@ def _data_inside_now(cloud: Cloud, ordered_contour: bool, margin: float):
     from ..geometry.mesh import winding_number
 
     assert cloud.faces is not None  # a high-confidence 3D topology is a closed mesh's
+    if len(cloud.faces) > MAX_INSIDE_FACES:
+        return None, None, None
     nodes = grid_axes(box, _raster_shape(box, 28))
     grid = np.stack(np.meshgrid(*nodes, indexing="ij"), axis=-1).reshape(-1, 3)
     inside = np.abs(winding_number(cloud.points, cloud.faces, grid)) > 0.5
