@@ -2,7 +2,7 @@
 
 Usage::
 
-    PYTHONPATH=src python experiments/topology.py [--dev ../shared/data] [--every 2] [--workers 2]
+    PYTHONPATH=src python experiments/topology.py [--dev ../shared/data] [--every 1] [--workers 2]
                                                   [--out docs/topology.md] [--from-json docs/topology.json]
 
 For every shape it fits the recommended pipeline (``ipfit fit``: the capture rule) twice, with
@@ -230,7 +230,7 @@ def markdown(rows: list[dict], every: int, command: str) -> str:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--dev", type=Path, default=REPO.parent / "shared" / "data")
-    parser.add_argument("--every", type=int, default=2)
+    parser.add_argument("--every", type=int, default=1)
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--out", type=Path, default=REPO / "docs" / "topology.md")
     parser.add_argument("--from-json", type=Path)
