@@ -294,8 +294,8 @@ def test_each_rule_judges_clean_by_its_own_definition():
         assert CAPTURE.is_clean(q) == is_clean(q) and GEOMETRIC.is_clean(q) == is_clean(q, ignore_specks=False)
 
 
-def test_the_registry_holds_the_three_rules_by_name():
-    assert list(RULES) == ["capture", "geometric", "paper"]
+def test_the_registry_holds_the_rules_by_name():
+    assert list(RULES) == ["capture", "geometric", "paper", "topology"]
     assert all(RULES[name].name == name and isinstance(RULES[name], DegreeRule) for name in RULES)
     assert (RULES["capture"], RULES["geometric"], RULES["paper"]) == (CAPTURE, GEOMETRIC, PAPER)
     assert get_rule("Paper") is PAPER and get_rule(CAPTURE) is CAPTURE   # names ignore case; objects pass
@@ -317,7 +317,7 @@ def test_an_unknown_rule_is_refused_in_one_line_naming_the_valid_ones():
         with pytest.raises(InvalidInputError) as caught:
             fit_adaptive(shape.points, shape.normals, method="3l", rule=bad)
         message = str(caught.value)
-        assert "\n" not in message and message.startswith("rule: expected one of 'capture', 'geometric', 'paper', got")
+        assert "\n" not in message and message.startswith("rule: expected one of 'capture', 'geometric', 'paper', 'topology', got")
 
 
 def test_a_rule_object_is_the_same_as_its_name(rng):

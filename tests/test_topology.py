@@ -265,20 +265,17 @@ def _neck_broken(poly) -> bool:
 def test_dumbbell_whose_neck_a_low_degree_breaks(seed):
     # (holds for seeds 0-5: IPFIT_TEST_SEED)
     from ipfit import fit_adaptive
-    from ipfit.degree.rules import CaptureRule
     from ipfit.normals import contour_normals
-
-    class Blind(CaptureRule):  # the capture rule before the topology check
-        checks_topology = False
 
     points = _dumbbell()
     normals = contour_normals(points)
-    blind = fit_adaptive(points, normals, max_degree=6, ordered_contour=True, rule=Blind(), rng=seed)
+    # the default capture rule reports the topology; the "topology" rule also holds it
+    blind = fit_adaptive(points, normals, max_degree=6, ordered_contour=True, rng=seed)
     four = blind.at_degree(4)
     # the reported topology agrees with the polynomial's signs: two loops where the neck is cut
     assert _neck_broken(four.polynomial) and four.quality.topology.loops == 2
     assert four.quality.topology_matches is False and not four.cleanup  # blind: nothing to repair
-    result = fit_adaptive(points, normals, max_degree=6, ordered_contour=True, rng=seed)
+    result = fit_adaptive(points, normals, max_degree=6, ordered_contour=True, rule="topology", rng=seed)
     repaired = result.at_degree(4)
     assert repaired.cleanup and repaired.cleanup[0]["target"] == "topology"  # its fit had two loops too
     for entry in result.degrees:
@@ -291,23 +288,25 @@ def test_dumbbell_whose_neck_a_low_degree_breaks(seed):
     assert chosen.quality.f_score >= 0.99 and result.success
 
 
-def test_the_paper_rule_measures_nothing_and_the_rules_check_topology():
-    from ipfit.degree.rules import CAPTURE, GEOMETRIC, PAPER, is_clean
+def test_the_paper_rule_measures_nothing_and_the_topology_rule_checks_topology():
+    from ipfit.degree.rules import CAPTURE, GEOMETRIC, PAPER, RULES, TOPOLOGY, is_clean
 
     assert (PAPER.measured, PAPER.checks_topology) == (False, False)
-    assert CAPTURE.checks_topology and GEOMETRIC.checks_topology
+    assert not CAPTURE.checks_topology and not GEOMETRIC.checks_topology  # not the default yet
+    assert TOPOLOGY.checks_topology and RULES["topology"] is TOPOLOGY
     ring = _ring()
     pair = synthetic.from_terms(2, 4, _times(_circle_terms(0.4, -0.5), _circle_terms(0.4, 0.5)))
     q = quality(pair, ring, ordered_contour=True)  # two loops side by side where the data nests them
     assert q.topology_matches is False
-    assert not is_clean(q) and not is_clean(q, ignore_specks=False)
+    assert not is_clean(q) and not is_clean(q, ignore_specks=False) and not TOPOLOGY.is_clean(q)
+    assert CAPTURE.is_clean(q)  # the default rule reports it and lets it pass
     # a bare cloud's estimate is reported but never held against a zero set: two circles closer
     # than the estimate's scales look like one band (one loop) to it
     close = _ring(300, radii=(1.0, 0.97))
     both = synthetic.from_terms(2, 4, _times(_circle_terms(1.0), _circle_terms(0.97)))
     q = quality(both, close[np.random.default_rng(0).permutation(len(close))])
     assert (q.data_topology.loops, q.data_topology.confidence, q.topology.loops) == (1, "medium", 2)
-    assert q.topology_matches is False and CAPTURE.is_clean(q) and GEOMETRIC.is_clean(q)
+    assert q.topology_matches is False and TOPOLOGY.is_clean(q) and GEOMETRIC.is_clean(q)
 
 
 @pytest.mark.slow
@@ -316,7 +315,7 @@ def test_ampersand_fits_as_its_outline_and_hole(tmp_path):
 
     prefix = tmp_path / "amp"
     assert main(["fit", str(FIXTURES / "ampersand.png"), "-o", str(prefix), "--no-picture", "--no-zero-set",
-                 "-q"]) == 0
+                 "--rule", "topology", "-q"]) == 0
     quality = json.loads(prefix.with_suffix(".json").read_text())["quality"]
     assert quality["topology"]["nesting"] == [0, 1] and quality["topology_matches"] is True
     assert quality["f_score"] >= 0.98  # 0.998 with seed 0 (docs/topology.md)
