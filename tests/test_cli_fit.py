@@ -43,7 +43,7 @@ def assert_obeys_its_rule(data):
     if data["adaptive"]["rule"] == "paper":
         index, _ = select_degree(degrees, smooth, epsilon, complete)
     elif data["adaptive"]["rule"] == "capture":
-        quality = [Quality(**{**d["quality"], "spurious": tuple(d["quality"]["spurious"])}) for d in data["degrees"]]
+        quality = [Quality.from_dict(d["quality"]) for d in data["degrees"]]  # its topology too
         index = select_degree_capture(degrees, [q.f_score for q in quality], [is_clean(q) for q in quality])
     else:
         quality = [d["quality"] for d in data["degrees"]]

@@ -159,6 +159,14 @@ def test_automatic_degrees_keep_two_points_per_coefficient():
     assert fit_adaptive(shape.points, shape.normals, method="3l").selected_degree == 2
 
 
+def _blind(name: str = "capture") -> DegreeRule:
+    """The rule ``name`` without the topology check (docs/topology.md): a degree of another topology
+    than the data's can be clean and is not repaired for it, as before issue 31."""
+    rule = type(RULES[name])()
+    rule.checks_topology = False
+    return rule
+
+
 def _shark(subdivisions: int = 3) -> trimesh.Trimesh:
     """A closed, sparsely sampled shark-like mesh: a tapering body with a dorsal and a tail fin."""
     sphere = trimesh.creation.icosphere(subdivisions=subdivisions)
@@ -176,11 +184,13 @@ def test_a_sparse_closed_shape_grows_no_lobe(seed):
     # it, the zero set stays on the data (0.97-0.99).
     shark = _shark()
     pts, faces, normals = np.asarray(shark.vertices), np.asarray(shark.faces), np.asarray(shark.vertex_normals)
-    before = fit_adaptive(pts, normals, faces=faces, min_degree=8, max_degree=8, rule="geometric", rng=seed)
-    after = fit_adaptive(pts, normals, faces=faces, min_degree=8, max_degree=8, rng=seed)
+    before = fit_adaptive(pts, normals, faces=faces, min_degree=8, max_degree=8, rule=_blind("geometric"), rng=seed)
+    # (the fins come off as surfaces of their own at degree 8: the topology check, left out here on
+    # both sides, rejects that degree; this test is about the precision repair)
+    after = fit_adaptive(pts, normals, faces=faces, min_degree=8, max_degree=8, rule=_blind(), rng=seed)
     q_before, q_after = before.degrees[0].quality, after.degrees[0].quality
     assert q_before.precision < 0.945                      # the failure, reproduced
-    assert q_after.precision >= 0.96 and is_clean(q_after)  # and fixed
+    assert q_after.precision >= 0.96 and is_clean(q_after, topology=False)  # and fixed
     assert q_after.recall >= 0.98
     assert any(a["target"] == "precision" for a in after.degrees[0].cleanup)
 
@@ -214,7 +224,9 @@ def test_a_degree_out_of_the_race_is_not_repaired():
 def test_a_repair_stops_at_the_first_weight_that_does_not_help():
     # (x² + y² − 1)(x² + y² − 0.04) on a unit circle's points: the small circle is spurious. The
     # repair tries the clean-up weights in turn, but goes on to a stronger weight only after one
-    # that improved the fit.
+    # that improved the fit. (The small circle is also a second loop where the contour has one: the
+    # rule's topology check, whose repair goes on to hold the places of the topology, is left out
+    # here and tested in test_topology.py.)
     from ipfit.degree.adaptive import DegreeResult
     from ipfit.fitting.objective import measures
     from ipfit.fitting.options import RECOMMENDED
@@ -250,14 +262,14 @@ def test_a_repair_stops_at_the_first_weight_that_does_not_help():
 
     for first in (spurious, still):  # the first weight changes nothing, or nothing that counts
         refit, calls = scripted(first, cleaner, cleaner)
-        kept = repair(spurious, refit, options, ipfit.Cloud(circle.points), True, CAPTURE)
+        kept = repair(spurious, refit, options, ipfit.Cloud(circle.points), True, _blind())
         assert calls == [1.0] and kept.quality.n_spurious == 1 and len(kept.cleanup) == 1
     refit, calls = scripted(cleaner, spurious, spurious)  # the first weight cleans it: done
-    kept = repair(spurious, refit, options, ipfit.Cloud(circle.points), True, CAPTURE)
+    kept = repair(spurious, refit, options, ipfit.Cloud(circle.points), True, _blind())
     assert calls == [1.0] and kept.quality.n_spurious == 0
     better = dataclasses.replace(still, quality=dataclasses.replace(still.quality, f_score=0.99 * cleaner.quality.f_score))
     refit, calls = scripted(better, cleaner, spurious)  # an improvement, not yet clean: the next weight
-    kept = repair(spurious, refit, options, ipfit.Cloud(circle.points), True, CAPTURE)
+    kept = repair(spurious, refit, options, ipfit.Cloud(circle.points), True, _blind())
     assert calls == [1.0, 10.0] and kept.quality.n_spurious == 0
 
 
@@ -282,8 +294,8 @@ def test_each_rule_judges_clean_by_its_own_definition():
         assert CAPTURE.is_clean(q) == is_clean(q) and GEOMETRIC.is_clean(q) == is_clean(q, ignore_specks=False)
 
 
-def test_the_registry_holds_the_three_rules_by_name():
-    assert list(RULES) == ["capture", "geometric", "paper"]
+def test_the_registry_holds_the_rules_by_name():
+    assert list(RULES) == ["capture", "geometric", "paper", "topology"]
     assert all(RULES[name].name == name and isinstance(RULES[name], DegreeRule) for name in RULES)
     assert (RULES["capture"], RULES["geometric"], RULES["paper"]) == (CAPTURE, GEOMETRIC, PAPER)
     assert get_rule("Paper") is PAPER and get_rule(CAPTURE) is CAPTURE   # names ignore case; objects pass
@@ -305,7 +317,7 @@ def test_an_unknown_rule_is_refused_in_one_line_naming_the_valid_ones():
         with pytest.raises(InvalidInputError) as caught:
             fit_adaptive(shape.points, shape.normals, method="3l", rule=bad)
         message = str(caught.value)
-        assert "\n" not in message and message.startswith("rule: expected one of 'capture', 'geometric', 'paper', got")
+        assert "\n" not in message and message.startswith("rule: expected one of 'capture', 'geometric', 'paper', 'topology', got")
 
 
 def test_a_rule_object_is_the_same_as_its_name(rng):

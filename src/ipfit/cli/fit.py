@@ -79,6 +79,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("-q", "--quiet", action="store_true", help="no progress output")
     parser.add_argument("--max-points", type=positive_int, metavar="N",
                         help="keep a random subset of N points of a larger file (fixed seed; for big scans)")
+    parser.add_argument("--largest-outline", action="store_true",
+                        help="a silhouette image: fit the outline of the largest shape alone, without its holes")
     from ._scene import add_fit_arguments
 
     add_fit_arguments(parser)
@@ -252,7 +254,7 @@ def run(args: argparse.Namespace) -> int:
         return run_fit(args, search_settings(args), _parse_degree, _OPTION_NAMES)
     if args.keep_planes or args.workers is not None or args.scheduler is not None:
         raise InvalidInputError("--keep-planes/--workers/--scheduler: they apply to a scene; add --objects.")
-    data = load(args.input, max_points=args.max_points)
+    data = load(args.input, max_points=args.max_points, largest_outline=args.largest_outline)
     _report_kept(data, args.max_points)
     points, normals = data.points, data.normals
     check_coordinates(points)  # before any line about the fit: data it cannot record is refused first
@@ -319,6 +321,8 @@ def run(args: argparse.Namespace) -> int:
         for entry in result.degrees:
             if entry.reason.startswith("rejected"):
                 print(f"degree {entry.degree} {entry.reason}")
+            elif entry.quality is not None and entry.quality.topology_matches is False:
+                _say_topology(entry.degree, entry.quality)
         if result.reason == "fixed":
             chosen = result.at_degree(result.selected_degree)
             line = f"fixed degree {result.selected_degree}: smoothness {table.split(': ')[1]}"
@@ -336,6 +340,13 @@ def run(args: argparse.Namespace) -> int:
         if trimmed:
             print(trimmed)
     return 130 if result.reason == "interrupted" else 0
+
+
+def _say_topology(degree: int, quality) -> None:
+    """'degree 14: 5 loops where the data has 1': a zero set of another shape than the data's."""
+    from ..zeroset.topology import describe_mismatch
+
+    print(f"degree {degree}: {describe_mismatch(quality.topology, quality.data_topology)}")
 
 
 def _suffixes(args: argparse.Namespace, dim: int) -> list[str]:

@@ -161,8 +161,7 @@ def _stored_quality(view, args, points, faces, ordered: bool):
     values = {name: stored.get(name) for name in Quality.__dataclass_fields__ if name in stored}
     for name in ("chamfer", "data_to_zero_set", "zero_set_to_data"):  # to_dict wrote inf as null
         values[name] = math.inf if values.get(name) is None else values[name]
-    values["spurious"] = tuple(dict(c) for c in stored.get("spurious") or ())
-    return Quality(**values)
+    return Quality.from_dict(values)
 
 
 _QUALITY_NEEDED = ("recall", "precision", "f_score", "n_components", "n_spurious", "closed", "n_open", "tau",

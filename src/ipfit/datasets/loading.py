@@ -27,7 +27,8 @@ from . import bundled
 __all__ = ["load"]
 
 
-def load(spec: str | os.PathLike | object, *, max_points: int | None = None, rng=0) -> Cloud:
+def load(spec: str | os.PathLike | object, *, max_points: int | None = None, rng=0,
+         largest_outline: bool = False) -> Cloud:
     """Read a point file, or a bundled dataset by name, or take another library's geometry.
 
     Parameters
@@ -45,6 +46,9 @@ def load(spec: str | os.PathLike | object, *, max_points: int | None = None, rng
     rng : int, Generator or None
         Seed of that draw; the default 0 gives the same subset on every run (the subset
         ``ipfit fit --max-points`` fits).
+    largest_outline : bool
+        A silhouette image: the outline of its largest shape alone, without its holes
+        (``ipfit fit --largest-outline``).
 
     Returns
     -------
@@ -70,7 +74,7 @@ def load(spec: str | os.PathLike | object, *, max_points: int | None = None, rng
     generator = check_rng(rng)
     # A PathLike is always a path: only a str can name a dataset.
     if path.exists() or not isinstance(spec, str):
-        cloud, faces = read_points_faces(path, max_points=max_points, rng=generator)
+        cloud, faces = read_points_faces(path, max_points=max_points, rng=generator, largest_outline=largest_outline)
         return Cloud(cloud.points, cloud.normals, faces, name=path.stem, source=path, n_file=cloud.n_file,
                      normals_source=cloud.normals_source)
     name = bundled.resolve_name(spec)

@@ -12,13 +12,15 @@ here and this module imports nothing of the package at import time.
 
 from __future__ import annotations
 
+import itertools
 from typing import NamedTuple, cast
 
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["Samples", "sample_segments", "sample_triangles", "Target", "points_target", "contour_target", "mesh_target",
-           "data_target", "query_workers", "DEFAULT_TAU_FRACTION", "DEFAULT_MAX_SAMPLES"]
+__all__ = ["Samples", "sample_segments", "sample_triangles", "Target", "points_target", "contour_target",
+           "contour_pieces", "mesh_target", "data_target", "query_workers", "DEFAULT_TAU_FRACTION",
+           "DEFAULT_MAX_SAMPLES", "BREAK_RATIO"]
 
 #: The tolerance τ within which a point counts as on the data's shape, as a fraction of the
 #: data's bounding-box diagonal: the default of :func:`ipfit.zeroset.quality.quality` and the least
@@ -269,15 +271,44 @@ def points_target(pts: NDArray, tau: float) -> Target:
     return Target(Samples(pts, np.ones(n), np.full(n, -1), np.arange(n)), "points", tau=tau)
 
 
+#: A jump between consecutive points of an ordered contour longer than this many times their
+#: median gap ends a piece (a loop, or an open arc); the same ratio closes a piece.
+BREAK_RATIO = 10.0
+
+
+def contour_pieces(points: NDArray) -> list[tuple[int, int, bool]]:
+    """The pieces of an ordered 2D contour: ``(start, stop, closed)`` row ranges, split where
+    consecutive points jump more than :data:`BREAK_RATIO` median gaps (the readers put one
+    loop after another, outline then holes); a piece is closed unless its own closing gap is
+    that long too.
+
+    >>> t = np.linspace(0, 2 * np.pi, 40, endpoint=False)
+    >>> circle = np.c_[np.cos(t), np.sin(t)]
+    >>> contour_pieces(np.vstack([circle, circle / 2 + 3, circle[:20]]))  # two loops, then an arc
+    [(0, 40, True), (40, 80, True), (80, 100, False)]
+    """
+    pts = np.asarray(points, dtype=np.float64)
+    if len(pts) < 2:
+        return [(0, len(pts), False)]
+    gaps = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+    limit = BREAK_RATIO * float(np.median(gaps))
+    cuts = [0, *(np.flatnonzero(gaps > limit) + 1).tolist(), len(pts)] if limit > 0 else [0, len(pts)]
+    out = []
+    for start, stop in itertools.pairwise(cuts):
+        closing = float(np.linalg.norm(pts[start] - pts[stop - 1]))
+        out.append((start, stop, stop - start > 2 and 0 < closing <= limit))
+    return out
+
+
 def contour_target(points: NDArray, spacing: float, max_samples: int, tau: float) -> Target:
-    """The polyline through 2D ``points`` in order, sampled every ``spacing`` at most."""
-    starts, ends = points[:-1], points[1:]
-    gaps = np.linalg.norm(ends - starts, axis=1)
-    closing = float(np.linalg.norm(points[0] - points[-1]))
-    # Close the loop unless its last gap is far longer than the typical one (an open curve).
-    if closing > 0 and closing <= 10 * float(np.median(gaps)):
-        starts = np.vstack([starts, points[-1:]])
-        ends = np.vstack([ends, points[:1]])
+    """The polylines through 2D ``points`` in order, piece by piece (:func:`contour_pieces`: a
+    contour file or silhouette of several loops lists one after another), each closed unless
+    its closing gap is far longer than the typical one (an open curve), sampled every
+    ``spacing`` at most."""
+    pieces = [np.vstack([points[a:b], points[a:a + 1]]) if closed else points[a:b]
+              for a, b, closed in contour_pieces(points)]
+    starts = np.concatenate([piece[:-1] for piece in pieces])
+    ends = np.concatenate([piece[1:] for piece in pieces])
     return Target(sample_segments(starts, ends, spacing, max_samples=max_samples), "segments", (starts, ends),
                   tau=tau)
 

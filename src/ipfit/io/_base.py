@@ -10,6 +10,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import NamedTuple
 
+import numpy as np
 from numpy.typing import NDArray
 
 from .._utils.optional import install_line
@@ -72,3 +73,28 @@ def as_path(path, name: str = "path") -> Path:
     shown = repr(path) if len(repr(path)) <= 60 else repr(path)[:57] + "..."
     raise InvalidInputError(f"{name}: expected a file path (str or pathlib.Path), got {type(path).__name__} "
                             f"{shown}. Pass the path of the file.")
+
+
+def chain_loops(loops: list[NDArray]) -> NDArray[np.float64]:
+    """Closed loops (each without its repeated first point) as one ordered contour: each loop
+    after the first starts at its point farthest from where the one before ended, so that the
+    jump between them is far longer than the gaps along them, which is how an ordered contour's
+    loops are told apart (:func:`ipfit.geometry.distance.contour_pieces`). Silhouettes and contour
+    files of several loops are read this way.
+
+    >>> square = np.array([[0, 0], [4, 0], [4, 4], [0, 4]], dtype=float)
+    >>> chain_loops([square, square / 4 + 1])[4:].tolist()
+    [[2.0, 1.0], [2.0, 2.0], [1.0, 2.0], [1.0, 1.0]]
+    """
+    return np.concatenate([np.roll(np.asarray(loop, dtype=np.float64), -k, axis=0)
+                           for loop, k in zip(loops, chain_offsets(loops), strict=True)])
+
+
+def chain_offsets(loops: list[NDArray]) -> list[int]:
+    """Where :func:`chain_loops` starts each loop."""
+    offsets, end = [0], np.asarray(loops[0])[-1]
+    for loop in loops[1:]:
+        start = int(np.argmax(np.linalg.norm(np.asarray(loop) - end, axis=1)))
+        offsets.append(start)
+        end = np.asarray(loop)[start - 1]
+    return offsets

@@ -127,7 +127,7 @@ FORMATS: dict[str, Format] = {
     ".laz": _LAS,
     ".pcd": Format("PCD, ASCII or binary (PCL, ROS)", "pypcd4", read_pcd, "scanners"),
     ".e57": Format("E57 (terrestrial scanners; scan poses applied)", "pye57", read_e57, "scanners"),
-    **{suffix: Format("silhouette image (outline of the largest shape)", "Pillow + scikit-image", read_image)
+    **{suffix: Format("silhouette image (outline and holes of the largest shape)", "Pillow + scikit-image", read_image)
        for suffix in IMAGE_SUFFIXES},
 }
 #: Extensions :func:`read_points` understands.
@@ -135,7 +135,7 @@ READ_FORMATS = tuple(FORMATS)
 
 
 def read_points(path: str | os.PathLike, *, merge: bool = True, face_normals: bool = True,
-                max_points: int | None = None, rng=0) -> PointCloud:
+                max_points: int | None = None, rng=0, largest_outline: bool = False) -> PointCloud:
     """Read a point cloud and its normals from a file, the format chosen by extension.
 
     Parameters
@@ -144,8 +144,8 @@ def read_points(path: str | os.PathLike, *, merge: bool = True, face_normals: bo
         Any suffix of :data:`READ_FORMATS`: ``.ply``, ``.obj``, ``.off``, ``.stl``, ``.glb``,
         ``.gltf``, ``.3mf``, ``.dae``, ``.xyz``, ``.txt``, ``.csv``, ``.npy``, ``.npz``, ``.las``, ``.laz``,
         ``.pcd``, ``.e57`` or a silhouette image (``.png``, ``.gif``, ``.bmp``, ``.tif``,
-        ``.jpg``...; the outer boundary of the largest shape, traced at subpixel precision,
-        x right and y up in pixel units, with outward normals).
+        ``.jpg``...; the boundaries of the largest shape, its outline then its holes, traced
+        at subpixel precision, x right and y up in pixel units, with outward normals).
     merge : bool
         Merge points at exactly the same position, averaging their normals.
     face_normals : bool
@@ -156,6 +156,8 @@ def read_points(path: str | os.PathLike, *, merge: bool = True, face_normals: bo
         Keep at most this many points, drawn at random without replacement (file order kept).
     rng : int, Generator or None
         Seed of that draw; the default 0 gives the same subset on every run.
+    largest_outline : bool
+        A silhouette image: the outline of the largest shape alone, its holes dropped.
 
     Returns
     -------
@@ -183,11 +185,13 @@ def read_points(path: str | os.PathLike, *, merge: bool = True, face_normals: bo
     >>> cloud.points.shape, cloud.n_file, cloud.n_kept, cloud.normals_source
     ((3, 2), 4, 3, None)
     """
-    return read_points_faces(path, merge=merge, face_normals=face_normals, max_points=max_points, rng=rng)[0]
+    return read_points_faces(path, merge=merge, face_normals=face_normals, max_points=max_points, rng=rng,
+                             largest_outline=largest_outline)[0]
 
 
 def read_points_faces(path: str | os.PathLike, *, merge: bool = True, face_normals: bool = True,
-                      max_points: int | None = None, rng=0) -> tuple[PointCloud, NDArray[np.int64] | None]:
+                      max_points: int | None = None, rng=0,
+                      largest_outline: bool = False) -> tuple[PointCloud, NDArray[np.int64] | None]:
     """:func:`read_points` and the file's faces (as :func:`read_mesh` gives them), from one read.
 
     The faces index the returned points; they are None when the file has none and when
@@ -197,7 +201,7 @@ def read_points_faces(path: str | os.PathLike, *, merge: bool = True, face_norma
     if max_points is not None:
         max_points = check_int(max_points, "max_points", minimum=MIN_POINTS)
     generator = check_rng(rng)
-    data, n_file = _parse(path)
+    data, n_file = _parse(path, largest_outline=bool(largest_outline))
     if max_points is not None and data.faces is None and len(data.points) > max_points:
         # before merging: a scanner's 100 million rows need not all be sorted
         data = _subsample(data, max_points, generator)
@@ -277,9 +281,9 @@ def _read_bytes(path: Path) -> bytes:
     return raw
 
 
-def _parse(path: Path) -> tuple[Raw, int]:
+def _parse(path: Path, largest_outline: bool = False) -> tuple[Raw, int]:
     """The format's reader on the file's bytes, every failure turned into one ReadError line;
-    also the number of rows the file holds."""
+    also the number of rows the file holds. ``largest_outline`` goes to the image reader."""
     _refuse_special(path)
     fmt = _format_for(path)
     raw = _read_bytes(path)
@@ -287,7 +291,8 @@ def _parse(path: Path) -> tuple[Raw, int]:
         with warnings.catch_warnings(), np.errstate(all="ignore"):
             # parsers warn about what they then fail on (or repair): the ReadError is the message
             warnings.simplefilter("ignore")
-            data = fmt.reader(path, raw)
+            data = read_image(path, raw, largest_outline=True) if largest_outline and fmt.reader is read_image \
+                else fmt.reader(path, raw)
     except ReadError:
         raise
     except MemoryError:

@@ -1,7 +1,10 @@
-"""Silhouette images: the outer boundary of the largest shape, as a 2D contour with normals.
+"""Silhouette images: the boundaries of the largest shape, as a 2D contour with normals.
 
 :func:`trace_silhouette` works on an array of grey levels; :func:`read_image` is the reader
-behind ``read_points("shape.png")`` (PNG, GIF, BMP, TIFF, JPEG... through Pillow).
+behind ``read_points("shape.png")`` (PNG, GIF, BMP, TIFF, JPEG... through Pillow). The shape
+is read whole: its outline and the outlines of its holes (an "&" has two), as one ordered
+contour of several loops, one after the other (:func:`chain_loops`), with outward normals of
+the solid; ``largest_outline=True`` keeps the outline alone, as before.
 """
 
 from __future__ import annotations
@@ -17,10 +20,10 @@ from numpy.typing import ArrayLike, NDArray
 from .._utils.validation import error
 from ..exceptions import InvalidInputError, ReadError
 from ..normals import contour_normals
-from ._base import MIN_POINTS, Raw, short
+from ._base import MIN_POINTS, Raw, chain_loops, chain_offsets, short
 
 __all__ = ["trace_silhouette", "trace_silhouettes", "read_silhouettes", "read_image", "check_image_pixels",
-           "CONTOUR_SPAN", "IMAGE_SUFFIXES",
+           "chain_loops", "CONTOUR_SPAN", "IMAGE_SUFFIXES",
            "MAX_IMAGE_PIXELS", "MIN_SHAPE_POINTS"]
 
 #: Central-difference span for the normals of traced contours (see ``contour_normals``):
@@ -48,14 +51,55 @@ def check_image_pixels(width: int, height: int) -> None:
                     f"Downscale it (e.g. to {max(1, int(width * shrink))} x {max(1, int(height * shrink))}).")
 
 
-def trace_silhouette(image: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Outer boundary of the largest shape in an image, with outward normals.
+def _signed_area(c: NDArray) -> float:
+    r, q = c[:, 0], c[:, 1]
+    return 0.5 * float(np.sum(q * np.roll(r, -1) - np.roll(q, -1) * r))
+
+
+def _as_xy(c: NDArray) -> NDArray[np.float64]:
+    """Marching-squares rows and columns of the padded image → x right, y up; the repeated
+    last point and repeated vertices (at saddles) dropped."""
+    if np.array_equal(c[0], c[-1]):
+        c = c[:-1]
+    points = np.column_stack([c[:, 1] - 1.0, -(c[:, 0] - 1.0)])
+    keep = np.ones(len(points), dtype=bool)
+    keep[1:] = np.any(np.diff(points, axis=0) != 0, axis=1)
+    return points[keep]
+
+
+def _holes(contours: list[NDArray], best: NDArray, best_area: float) -> list[NDArray]:
+    """The outlines of the holes of the shape outlined by ``best``: the contours inside it wound
+    the other way (holes, not islands) and inside no other contour inside it (an island in a
+    hole is another shape, and so are its holes)."""
+    from skimage.measure import points_in_poly
+
+    inside = [c for c in contours if c is not best and len(c) >= MIN_SHAPE_POINTS + 1
+              and points_in_poly(c[:1], best)[0]]
+    sign = math.copysign(1.0, best_area)
+    out = []
+    for c in inside:
+        if math.copysign(1.0, _signed_area(c)) == sign:
+            continue  # an island's outline
+        if any(points_in_poly(c[:1], other)[0] for other in inside if other is not c):
+            continue  # inside another outline inside the shape: the hole of an island
+        out.append(c)
+    return out
+
+
+def trace_silhouette(image: ArrayLike, *, largest_outline: bool = False) -> tuple[NDArray[np.float64],
+                                                                                   NDArray[np.float64]]:
+    """Boundaries of the largest shape in an image (its outline, then its holes), with the
+    outward normals of the shape.
 
     The foreground is the class (Otsu threshold; midway for two-level images) that is rarer
     on the image border. The image is padded with background so shapes touching the border
     close. Points are in pixel units, x to the right, y up (y = −row), at subpixel precision
     (marching squares). :func:`read_image` chooses the channel: alpha when it separates a
     shape from a transparent background, otherwise luminance.
+
+    The outline runs counter-clockwise; each hole (of at least :data:`MIN_SHAPE_POINTS`
+    boundary points) follows it, clockwise, chained by :func:`chain_loops`. With
+    ``largest_outline`` the outline alone (holes dropped).
 
     Raises
     ------
@@ -95,28 +139,38 @@ def trace_silhouette(image: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.
     for c in contours:
         if len(c) < MIN_POINTS + 1:
             continue
-        r, q = c[:, 0], c[:, 1]
-        area = 0.5 * abs(float(np.sum(q * np.roll(r, -1) - np.roll(q, -1) * r)))
-        if area > best_area:
+        area = _signed_area(c)
+        if abs(area) > abs(best_area):
             best, best_area = c, area
-    if best is None or best_area <= 0:
+    if best is None or best_area == 0:
         raise InvalidInputError(f"image: no closed shape in the image. {_USE_A_SILHOUETTE}")
-    if np.array_equal(best[0], best[-1]):
-        best = best[:-1]
-    points = np.column_stack([best[:, 1] - 1.0, -(best[:, 0] - 1.0)])
-    keep = np.ones(len(points), dtype=bool)  # marching squares can repeat a vertex at saddles
-    keep[1:] = np.any(np.diff(points, axis=0) != 0, axis=1)
-    points = points[keep]
+    points = _as_xy(best)
     if len(points) < MIN_SHAPE_POINTS:
         column, row = points.mean(axis=0) * [1, -1]
         raise InvalidInputError(
-            f"image: no shape in the image, only specks: the largest covers {best_area:.3g} pixels "
+            f"image: no shape in the image, only specks: the largest covers {abs(best_area):.3g} pixels "
             f"near column {column:.0f}, row {row:.0f} (an outline needs at least {MIN_SHAPE_POINTS} "
             f"boundary points). {_USE_A_SILHOUETTE}")
-    return points, contour_normals(points, span=min(CONTOUR_SPAN, (len(points) - 1) // 2))
+    holes = [] if largest_outline else [_as_xy(c) for c in _holes(contours, best, best_area)]
+    loops = [_oriented(points, 1.0)] + [_oriented(h, -1.0) for h in holes if len(h) >= MIN_SHAPE_POINTS]
+    normals = []
+    for i, loop in enumerate(loops):
+        outward = contour_normals(loop, span=min(CONTOUR_SPAN, (len(loop) - 1) // 2))
+        normals.append(outward if i == 0 else -outward)  # a hole's solid is outside its loop
+    offsets = chain_offsets(loops)
+    return (np.concatenate([np.roll(loop, -k, axis=0) for loop, k in zip(loops, offsets, strict=True)]),
+            np.concatenate([np.roll(n, -k, axis=0) for n, k in zip(normals, offsets, strict=True)]))
 
 
-def read_image(path: Path, raw: bytes) -> Raw:
+def _oriented(loop: NDArray, sign: float) -> NDArray[np.float64]:
+    """``loop`` (x right, y up) counter-clockwise (``sign`` 1) or clockwise (−1)."""
+    x, y = loop[:, 0], loop[:, 1]
+    area = float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
+    return loop if area * sign >= 0 else loop[::-1].copy()
+
+
+def read_image(path: Path, raw: bytes, *, largest_outline: bool = False) -> Raw:
+    """An image's largest shape, its outline and holes (:func:`trace_silhouette`)."""
     from PIL import Image, UnidentifiedImageError
 
     try:
@@ -124,7 +178,7 @@ def read_image(path: Path, raw: bytes) -> Raw:
             check_image_pixels(*im.size)  # from the header: nothing is decoded yet
             im.load()
             grey = _grey_levels(im)
-        points, normals = trace_silhouette(grey)
+        points, normals = trace_silhouette(grey, largest_outline=largest_outline)
     except UnidentifiedImageError:
         raise ReadError(f"{path}: not a readable image (Pillow does not recognise its content). "
                         "Check that the file is complete and of the format its extension says.") from None

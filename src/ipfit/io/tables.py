@@ -3,6 +3,12 @@
 Columns are x, y[, z] optionally followed by as many normal components, or named by a
 header (x, y, z, nx, ny, nz / normal_x... ). NumPy headers are checked against the file's
 size before anything is allocated.
+
+A 2D text file of several closed contours (an outline and its holes, or several shapes) lists
+them one after the other, separated by a blank line or a row of NaN: they are read as one
+ordered contour of several loops (:func:`ipfit.io._base.chain_loops`), each later loop
+starting where the jump to it is longest, so that the quality measures and the topology tell
+them apart.
 """
 
 from __future__ import annotations
@@ -15,7 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..exceptions import ReadError
-from ._base import Raw, short
+from ._base import Raw, chain_offsets, short
 
 __all__ = ["read_text", "read_npy", "read_npz"]
 
@@ -42,8 +48,14 @@ def read_text(path: Path, raw: bytes) -> Raw:
                         "Check the format of the file.") from None
     if "\x00" in text:
         raise ReadError(f"{path}: not a text file (it contains NUL bytes). Check the format of the file.")
-    lines = [(number, line.split("#", 1)[0].strip()) for number, line in enumerate(text.splitlines(), start=1)]
-    lines = [(number, line) for number, line in lines if line]
+    lines, blocks, block = [], [], 0
+    for number, line in enumerate(text.splitlines(), start=1):
+        content = line.split("#", 1)[0].strip()
+        if content:
+            lines.append((number, content))
+            blocks.append(block)
+        elif not line.strip():
+            block += 1  # a blank line: the rows after it are another contour
     if not lines:
         raise ReadError(f"{path}: no data rows (only blank or comment lines). Add one point per row.")
     first = lines[0][1]
@@ -51,7 +63,7 @@ def read_text(path: Path, raw: bytes) -> Raw:
     names = None
     if not all(_is_number(w) for w in _split(first, delimiter)):
         names = [w.strip().strip('"').strip("'").lower() for w in _split(first, delimiter)]
-        lines = lines[1:]
+        lines, blocks = lines[1:], blocks[1:]
         if not lines:
             raise ReadError(f"{path}: a header line but no data rows. Add one point per row.")
     numbers = [number for number, _ in lines]
@@ -65,12 +77,31 @@ def read_text(path: Path, raw: bytes) -> Raw:
     if names is not None and len(names) != table.shape[1]:
         raise ReadError(f"{path}: the header names {len(names)} columns but line {numbers[0]} has "
                         f"{table.shape[1]} values. Make them match.")
-    bad = ~np.isfinite(table).all(axis=1)
+    separators = np.isnan(table).all(axis=1)  # a row of NaN: the rows after it are another contour
+    bad = ~np.isfinite(table).all(axis=1) & ~separators
     if bad.any():
         first_bad = numbers[int(np.flatnonzero(bad)[0])]
         raise ReadError(f"{path}: {int(bad.sum())} rows with NaN or infinite values (first at line {first_bad}). "
                         "Remove or repair them.")
+    if separators.any() or blocks[-1] != blocks[0]:
+        table = _chained(table, np.asarray(blocks) + np.cumsum(separators))
+    if not len(table):
+        raise ReadError(f"{path}: no data rows (only separators). Add one point per row.")
     return _columns(path, table, names)
+
+
+def _chained(table: NDArray, blocks: NDArray) -> NDArray:
+    """The rows without the NaN separators; the contours of a 2D table (``blocks`` numbers
+    them, separators included) chained as loops of one ordered contour. Contours of fewer than
+    3 rows, or 3D rows, are kept in the file's order."""
+    keep = ~np.isnan(table).all(axis=1)
+    table, blocks = table[keep], blocks[keep]
+    starts = np.flatnonzero(np.r_[True, blocks[1:] != blocks[:-1]]) if len(blocks) else np.empty(0, dtype=int)
+    parts = np.split(table, starts[1:])
+    if len(parts) < 2 or table.shape[1] not in (2, 4) or min(map(len, parts)) < 3:
+        return table
+    offsets = chain_offsets([part[:, :2] for part in parts])
+    return np.concatenate([np.roll(part, -k, axis=0) for part, k in zip(parts, offsets, strict=True)])
 
 
 #: Rows searched for a number before a text file that fails to read is called a text without numbers.

@@ -45,6 +45,7 @@ __all__ = [
     "FIGURE_FORMATS",
     "SPURIOUS_COLOR",
     "OUTLIER_COLOR",
+    "COMPONENT_COLORS",
 ]
 
 CURVE_COLOR = "#1f5fbf"
@@ -66,6 +67,9 @@ POINT_ALPHA_UNDER = 0.35
 #: zero set and the red spurious pieces (a light yellow where the reds turn a dark olive);
 #: Okabe and Ito's orange came within 12 of the viewer's red.
 OUTLIER_COLOR = "#ffb000"
+#: Each component its own colour where a zero set's topology differs from the data's (blue
+#: first, then colours clear of the spurious red and the outliers' amber).
+COMPONENT_COLORS = ("#1f5fbf", "#2ca02c", "#9467bd", "#17becf", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22")
 METHOD_TITLES = {"lstsq": "classic linear", "3l": "3L", "ridge": "3L + ridge", "taubin": "Taubin",
                  "gradient_one": "gradient-one", "de": "DE", "pso": "PSO", "de+polish": "DE + polish",
                  "pso+polish": "PSO + polish", "polish": "polish (L-BFGS from the best seed)"}
@@ -292,7 +296,7 @@ def plot_curve(poly: ImplicitPolynomial | None, points: ArrayLike | None = None,
                zero_set: ZeroSet | None = None, bounds: ArrayLike | None = None, margin: float = 0.25,
                resolution: int | None = None, color=CURVE_COLOR, linewidth: float = 1.6, label: str | None = None,
                spurious: ArrayLike | None = None, spurious_color=SPURIOUS_COLOR, outliers: ArrayLike | None = None,
-               outlier_color=OUTLIER_COLOR, axis_off: bool = False):
+               outlier_color=OUTLIER_COLOR, axis_off: bool = False, separate: bool = False):
     """Draw the zero set of a 2D polynomial (and the data points, if given); returns ``ax``.
 
     Parameters
@@ -305,6 +309,8 @@ def plot_curve(poly: ImplicitPolynomial | None, points: ArrayLike | None = None,
         ``spurious_color`` (see :func:`ipfit.zeroset.quality.spurious_components`).
     outliers : a mask over ``points``, or their indices: drawn in ``outlier_color``, with a
         legend entry "outliers (N)" (see :func:`plot_points`).
+    separate : each curve its own colour (:data:`COMPONENT_COLORS`), spurious ones still red:
+        how :func:`plot_result` shows a zero set whose topology differs from the data's.
     """
     pts = None if points is None else as_points(points, dims=(2,))
     zs = _zero_set_for(poly, zero_set, pts, bounds, margin, resolution)
@@ -317,7 +323,8 @@ def plot_curve(poly: ImplicitPolynomial | None, points: ArrayLike | None = None,
     if pts is not None:
         plot_points(pts, ax, outliers=marked, outlier_color=outlier_color)
     for i, curve in enumerate(zs.curves):
-        ax.plot(curve[:, 0], curve[:, 1], color=spurious_color if flags[i] else color, lw=linewidth, zorder=2,
+        own = COMPONENT_COLORS[i % len(COMPONENT_COLORS)] if separate else color
+        ax.plot(curve[:, 0], curve[:, 1], color=spurious_color if flags[i] else own, lw=linewidth, zorder=2,
                 label=label if i == 0 else None)
     if marked is not None:  # again, with the curve's label
         _outlier_legend(ax)
@@ -353,6 +360,7 @@ def plot_surface(poly: ImplicitPolynomial | None, points: ArrayLike | None = Non
                  zero_set: ZeroSet | None = None, bounds: ArrayLike | None = None, margin: float = 0.25,
                  resolution: int | None = None, max_faces: int = 30000, color=SURFACE_COLOR,
                  show_points: bool | str = False, spurious: ArrayLike | None = None, spurious_color=SPURIOUS_COLOR,
+                 separate: bool = False,
                  trimmed: ArrayLike | None = None, outliers: ArrayLike | None = None, outlier_color=OUTLIER_COLOR,
                  view: tuple[float, float] = (20.0, -60.0), up: str = "z", axis_off: bool = False,
                  zoom: float = 1.15):
@@ -371,6 +379,8 @@ def plot_surface(poly: ImplicitPolynomial | None, points: ArrayLike | None = Non
         when it has no polynomial, or when flags are given for its faces).
     spurious : one flag per component of the zero set (as ``zero_set.component_labels``);
         flagged components are drawn in ``spurious_color``.
+    separate : each component its own colour (:data:`COMPONENT_COLORS`), as :func:`plot_result`
+        shows a zero set whose topology differs from the data's.
     trimmed : one flag per face of the zero set: the faces a trim leaves out
         (:func:`ipfit.zeroset.trim.trim_mask` is the opposite), drawn lighter and see-through
         (:data:`TRIMMED_LIGHTEN`, :data:`TRIMMED_ALPHA`).
@@ -413,6 +423,9 @@ def plot_surface(poly: ImplicitPolynomial | None, points: ArrayLike | None = Non
         for part, rgb, alpha, zorder in ((~flagged, color, 1.0, 1), (flagged, spurious_color, SPURIOUS_ALPHA, 2)):
             if part.any():
                 colors = _shaded_colors(vertices, faces[part], to_rgba(rgb)[:3])
+                if separate and zorder == 1:  # each component its own colour, shaded alike
+                    own = np.array([to_rgba(c)[:3] for c in COMPONENT_COLORS])[labels[part] % len(COMPONENT_COLORS)]
+                    colors[:, :3] = np.clip(own * (colors[:, :3] / np.maximum(to_rgba(rgb)[:3], 1e-9)), 0, 1)
                 colors[:, 3] = alpha
                 if zorder == 1:
                     light = faint[part]
@@ -521,6 +534,17 @@ def without_outliers(points: NDArray, faces: NDArray | None,
 
 def _number(value, digits: int = 3) -> str | None:
     return f"{value:.{digits}f}" if isinstance(value, (int, float)) and math.isfinite(value) else None
+
+
+def _topology_note(view: ResultView, poly) -> str:
+    """The recorded topology mismatch of the degree drawn ('5 loops where the data has 1'), or ''."""
+    from ..zeroset.topology import Topology, describe_mismatch
+
+    entry = next((d.entry for d in view.degrees if d.polynomial is poly), None)
+    stored = (entry or {}).get("quality") or (view.data.get("quality") if poly is view.polynomial else None) or {}
+    if not stored.get("topology") or not stored.get("data_topology"):
+        return ""
+    return describe_mismatch(Topology.from_dict(stored["topology"]), Topology.from_dict(stored["data_topology"]))
 
 
 def _panels(view: ResultView) -> list[tuple[str, str, Any]]:
@@ -651,12 +675,16 @@ def plot_result(result, points: ArrayLike | None = None, path: str | os.PathLike
                 flags = spurious_components(zs, kept, faces=kept_faces, ordered_contour=ordered)
                 if flags.any():
                     label += f"\n{int(flags.sum())} spurious piece{'s' if flags.sum() > 1 else ''} (red)"
+            mismatch = _topology_note(view_, payload)
+            if mismatch:
+                label += f"\n{mismatch}"
             if dim == 2:
-                plot_curve(payload, shown, ax, zero_set=zs, spurious=flags, outliers=shown_outliers, axis_off=True)
+                plot_curve(payload, shown, ax, zero_set=zs, spurious=flags, outliers=shown_outliers, axis_off=True,
+                           separate=bool(mismatch))
             else:
                 plot_surface(payload, shown, ax, zero_set=zs, spurious=flags, trimmed=faint, outliers=shown_outliers,
                              show_points="under", view=view, up=up, max_faces=max_faces, axis_off=True,
-                             zoom=_RESULT_ZOOM_3D)
+                             zoom=_RESULT_ZOOM_3D, separate=bool(mismatch))
         else:
             g, s = zip(*payload, strict=True)  # payload: (degree, smoothness) pairs
             plot_smoothness(g, s, view_.selected_degree, ax)

@@ -17,7 +17,11 @@ With a tolerance τ (default 2 % of the data's bounding-box diagonal):
   (data → zero set and zero set → shape);
 * **n_components** / **n_spurious**: pieces of the zero set inside the box, and those with
   no part within τ of the shape;
-* **closed**: whether the zero set closes inside the box.
+* **closed**: whether the zero set closes inside the box;
+* **topology**, **data_topology**, **topology_matches**: the zero set's loops and their nesting
+  (2D) or components and genus (3D), specks left out, against the data's, with its confidence
+  (:mod:`ipfit.zeroset.topology`); ``topology_matches`` is None when the data's is not known
+  well enough to say.
 
 Distances are exact distances to the zero set's segments or triangles (and to the data's
 contour segments or faces), found among the elements of the nearest samples of that shape.
@@ -59,6 +63,7 @@ from ..geometry.distance import (
 )
 from ..polynomial import ImplicitPolynomial
 from .extract import ZeroSet, extract_zero_set
+from .topology import Topology, data_topology, zero_set_topology
 
 __all__ = ["Quality", "quality", "spurious_components", "stray_samples", "looks_like_contour", "DEFAULT_TAU_FRACTION"]
 
@@ -82,6 +87,8 @@ class Quality:
     spurious : one record per spurious component: its ``size`` (length in 2D, area in 3D,
         user units), ``share`` of the zero set's total size, ``center`` (mean position) and
         ``distance`` (nearest approach to the data).
+    topology, data_topology : the zero set's :class:`~ipfit.zeroset.topology.Topology` (specks
+        left out) and the data's (with its confidence); None when not measured.
     """
 
     recall: float
@@ -98,6 +105,30 @@ class Quality:
     reference: str
     spurious: tuple[dict, ...] = ()
     n_open: int = 0
+    topology: Topology | None = None
+    data_topology: Topology | None = None
+
+    @property
+    def topology_matches(self) -> bool | None:
+        """Whether the zero set has the data's topology; None when either is unknown (the data's
+        confidence "low" or "unknown", or not measured)."""
+        if self.topology is None or self.data_topology is None:
+            return None
+        return self.data_topology.matches(self.topology)
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> Quality:
+        """The quality :meth:`to_dict` wrote (a result file's ``quality``): None distances become
+        infinite again, the topologies :class:`~ipfit.zeroset.topology.Topology` objects; keys it
+        does not know (``topology_matches``, which is derived) are left out."""
+        values = {name: data[name] for name in cls.__dataclass_fields__ if name in data}
+        for name in ("chamfer", "data_to_zero_set", "zero_set_to_data"):
+            if name in values and values[name] is None:
+                values[name] = math.inf
+        values["spurious"] = tuple(dict(c) for c in data.get("spurious") or ())
+        for name in ("topology", "data_topology"):
+            values[name] = Topology.from_dict(data[name]) if data.get(name) else None
+        return cls(**values)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready values (infinite distances become None)."""
@@ -106,10 +137,17 @@ class Quality:
             if isinstance(value, float) and not math.isfinite(value):
                 out[key] = None
         out["spurious"] = [dict(c) for c in self.spurious]
+        for key in ("topology", "data_topology"):
+            value = getattr(self, key)
+            out[key] = None if value is None else value.to_dict()
+        out["topology_matches"] = self.topology_matches
         return out
 
     def __str__(self) -> str:
-        return "\n".join(f"{k:<17} {_fmt(v)}" for k, v in asdict(self).items())
+        rows = {**asdict(self), "topology": self.topology and self.topology.describe(),
+                "data_topology": self.data_topology and self.data_topology.describe(),
+                "topology_matches": self.topology_matches}
+        return "\n".join(f"{k:<17} {_fmt(v)}" for k, v in rows.items())
 
 
 def _fmt(value) -> str:
@@ -296,10 +334,12 @@ def _measure_now(model, cloud: Cloud, *, ordered_contour, tau, tau_fraction, bou
                                    lambda: data_target(pts, cloud.faces, ordered_contour, spacing, max_samples, tau))
 
     n_components = zs.n_components
+    shape = data_topology(cloud, bool(ordered_contour))
     if zs.is_empty:
         return (Quality(recall=0.0, precision=0.0, f_score=0.0, chamfer=math.inf, n_components=0, n_spurious=0,
                         closed=False, tau=tau, data_to_zero_set=math.inf, zero_set_to_data=math.inf,
-                        grid_step=zs.step, reference=reference), np.zeros(0, dtype=bool),
+                        grid_step=zs.step, reference=reference, topology=zero_set_topology(zs),
+                        data_topology=shape), np.zeros(0, dtype=bool),
                 Samples(np.empty((0, dim)), np.empty(0), np.empty(0, dtype=np.int64), np.empty(0, dtype=np.int64)),
                 np.empty(0), tau)
 
@@ -327,12 +367,14 @@ def _measure_now(model, cloud: Cloud, *, ordered_contour, tau, tau_fraction, bou
     nearest = np.full(n_components, np.inf)
     np.minimum.at(nearest, samples.labels, d_zero)
     flags = nearest > tau
+    spurious = _spurious_components(samples, nearest, tau)
     return (Quality(recall=recall, precision=precision, f_score=float(f_score),
                     chamfer=0.5 * (data_to_zero + zero_to_data), n_components=n_components,
                     n_spurious=int(flags.sum()), closed=zs.closed, tau=tau, data_to_zero_set=data_to_zero,
-                    zero_set_to_data=zero_to_data, grid_step=zs.step, reference=reference,
-                    spurious=_spurious_components(samples, nearest, tau),
-                    n_open=int((zs.component_open & ~flags).sum())), flags, samples, d_zero, tau)
+                    zero_set_to_data=zero_to_data, grid_step=zs.step, reference=reference, spurious=spurious,
+                    n_open=int((zs.component_open & ~flags).sum()),
+                    topology=zero_set_topology(zs, spurious, flags, tau), data_topology=shape),
+            flags, samples, d_zero, tau)
 
 
 def _spurious_components(samples, nearest: NDArray, tau: float) -> tuple[dict, ...]:
