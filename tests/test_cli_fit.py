@@ -13,7 +13,7 @@ import ipfit
 
 from ipfit.degree.adaptive import select_degree, select_degree_geometric
 from ipfit.zeroset.quality import Quality
-from ipfit.degree.rules import is_clean, select_degree_capture
+from ipfit.degree.rules import get_rule, select_degree_capture
 from ipfit.cli import main
 
 
@@ -42,9 +42,10 @@ def assert_obeys_its_rule(data):
     complete = data["adaptive"]["reason"] != "interrupted"
     if data["adaptive"]["rule"] == "paper":
         index, _ = select_degree(degrees, smooth, epsilon, complete)
-    elif data["adaptive"]["rule"] == "capture":
-        quality = [Quality.from_dict(d["quality"]) for d in data["degrees"]]  # its topology too
-        index = select_degree_capture(degrees, [q.f_score for q in quality], [is_clean(q) for q in quality])
+    elif data["adaptive"]["rule"] in ("capture", "topology"):
+        rule = get_rule(data["adaptive"]["rule"])  # "topology" also holds the data's topology
+        quality = [Quality.from_dict(d["quality"]) for d in data["degrees"]]
+        index = select_degree_capture(degrees, [q.f_score for q in quality], [rule.is_clean(q) for q in quality])
     else:
         quality = [d["quality"] for d in data["degrees"]]
         clean = [q["n_spurious"] == 0 and q["closed"] for q in quality]
