@@ -85,8 +85,9 @@ def fit_scene(points: ArrayLike, normals: ArrayLike | None = None, *, labels: Ar
         with ``rng=shape_seed(seed, "object-i")`` (:func:`ipfit.batch.shape_seed`), on Dask or not.
     client, workers, scheduler : fit the objects on Dask (as :func:`ipfit.fit_many`): a client, an
         embedded cluster of ``workers`` processes, or a scheduler's address. None of them: here.
-    progress : called with ``{"event": "object", "index", "n_objects", "n_points", "selected_degree",
-        "f_score", "touching"}`` after each object.
+    progress : callable, optional
+        Called after each object with a dict: ``event`` ("object"), ``index``, ``n_objects``,
+        ``n_points``, ``selected_degree``, ``f_score``, ``touching``.
 
     Returns
     -------
