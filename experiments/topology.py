@@ -5,17 +5,19 @@ Usage::
     PYTHONPATH=src python experiments/topology.py [--dev ../shared/data] [--every 1] [--workers 2]
                                                   [--out docs/topology.md] [--from-json docs/topology.json]
 
-For every shape it fits the recommended pipeline (``ipfit fit``: the capture rule) twice, with
-seed 0:
+For every shape it fits the recommended pipeline (``ipfit fit``: the capture rule) three ways,
+with seed 0:
 
-* **before**: the default capture rule, which reports the topology but does not hold it (a
-  degree of another topology than the data's can be clean, and the repair does not hold the
-  places of the topology);
-* **after**: the ``"topology"`` rule (``ipfit fit --rule topology``): the capture rule that holds it.
+* **before**: the capture rule as it was before it preferred the data's topology (reported, not
+  held: ``CaptureRule`` with ``prefers_topology = False``);
+* **default**: the capture rule as ``ipfit fit`` runs it now: when its choice has another
+  topology than the data's, the lowest degree of the data's topology within the rule's
+  tolerance of the best clean F-score, as fitted or repaired to it, at no cost in F-score;
+* **strict**: the ``"topology"`` rule (``ipfit fit --rule topology``): the topology held at any cost.
 
-The two runs are the same fit until a degree (or a repair round) has another topology than
-the data's, known with confidence; so the "before" run is only made for the shapes whose
-"after" run met one, and otherwise taken to be the "after" run (the rows say so).
+The runs are the same fit until a degree (or a repair round) has another topology than the
+data's, known with confidence; so "before" and "default" are only run for the shapes whose
+strict run met one, and otherwise taken to be the strict run (the rows say so).
 
 Shapes: the MPEG-7 development contours (``mpeg7-dev``, every ``--every``-th), the Turk
 development meshes (``turk-dev``), the bundled shapes, and two silhouettes made here:
@@ -106,13 +108,24 @@ def fit_one(group: str, spec: str) -> dict:
     after = ipfit.fit_adaptive(cloud, rng=0, rule="topology")
     row["after"] = _summary(after, time.perf_counter() - start)
     if _met_topology(after):
-        start = time.perf_counter()
-        before = ipfit.fit_adaptive(cloud, rng=0)  # the default capture rule: topology reported, not held
-        row["before"] = _summary(before, time.perf_counter() - start)
+        for key, rule in (("before", _before_rule()), ("default", "capture")):
+            start = time.perf_counter()
+            run = ipfit.fit_adaptive(cloud, rng=0, rule=rule)
+            row[key] = _summary(run, time.perf_counter() - start)
         row["before_run"] = True
     else:
-        row["before"], row["before_run"] = dict(row["after"]), False
+        row["before"], row["default"], row["before_run"] = dict(row["after"]), dict(row["after"]), False
     return row
+
+
+def _before_rule():
+    """The capture rule before it preferred the data's topology (the topology reported only)."""
+    from ipfit.degree.rules import CaptureRule
+
+    class Before(CaptureRule):
+        prefers_topology = False
+
+    return Before()
 
 
 def _jobs(dev: Path, every: int, images: Path) -> list[tuple[str, str]]:
@@ -138,82 +151,112 @@ def _share(rows, key, confidence: str = "high") -> str:
     return f"{good}/{len(known)} ({100 * good / len(known):.0f}%)"
 
 
+RUNS = (("before", "before"), ("default", "default"), ("after", "strict"))
+
+
+def _drops(rows, key) -> list[dict]:
+    return [r for r in rows if r["before"]["f_score"] - r[key]["f_score"] > 0.01]
+
+
 def _notes(rows: list[dict]) -> list[str]:
     """What the table says about issue 31's targets, and where the F-score dropped."""
     contours = [r for r in rows if r["group"] == "mpeg7-dev"]
-    one = sum(r["after"]["matches"] is True for r in contours)
     by_name = {r["shape"]: r for r in rows}
     closed = [r for r in rows if r["group"] == "turk-dev" and r["confidence"] == "high"]
-    drops = [r for r in rows if r["before"]["f_score"] - r["after"]["f_score"] > 0.01]
+    counts = {key: sum(r[key]["matches"] is True for r in contours) for key, _ in RUNS}
     out = [f"- One outline each (the MPEG-7 development contours): the selected zero set has exactly one loop "
-           f"on {one} of {len(contours)} after, {sum(r['before']['matches'] is True for r in contours)} before "
-           "(specks counted as loops unless `is_speck` leaves them out)."]
+           f"on {counts['default']} of {len(contours)} by default, {counts['before']} before, {counts['after']} "
+           "with the strict rule (specks counted as loops unless `is_speck` leaves them out)."]
     for name in ("horse", "ampersand"):
         if name in by_name:
-            r = by_name[name]["after"]
-            out.append(f"- {name}: {r['topology']}, F {r['f_score']:.3f} at degree {r['degree']} (before: "
-                       f"{by_name[name]['before']['topology']}, F {by_name[name]['before']['f_score']:.3f}).")
+            r = by_name[name]
+            out.append(f"- {name}: by default {r['default']['topology']}, F {r['default']['f_score']:.3f} at degree "
+                       f"{r['default']['degree']} (before: {r['before']['topology']}, F {r['before']['f_score']:.3f}; "
+                       f"strict: {r['after']['topology']}, F {r['after']['f_score']:.3f}).")
     out.append("- The \"&\" of DejaVu Sans Bold has one counter, not two: its outline and one hole (the glyph's "
                "TextPath has two polygons), so its target is 2 loops, one inside the other.")
     out.append(f"- Turk meshes: {len(closed)} of 12 are closed with parts that do not pass through each other "
                "(known with confidence); the others are open (their holes capped, an estimate) or made of parts "
                "that intersect (unknown). "
-               + ", ".join(f"{r['shape']}: {r['data']} in the data, {r['after']['topology']} selected" for r in closed)
-               + ": no degree tried comes apart into the mesh's separate parts, so no degree is clean and the "
-               "rule keeps the best F-score, as before (the repair's rounds cost the time).")
-    if drops:
-        wrong = sum(r["before"]["matches"] is False and r["after"]["matches"] is True for r in drops)
-        out.append(f"- F-score drops of more than 0.01 ({wrong} of {len(drops)} on shapes whose selected zero set "
-                   "had the wrong topology before and the right one after; parts thinner than the tolerance, "
-                   "legs and antennae, cost their F when they have to join the outline): "
-                   + ", ".join(f"{r['shape']} {r['before']['f_score']:.3f} → {r['after']['f_score']:.3f}"
-                               for r in drops) + ".")
+               + ", ".join(f"{r['shape']}: {r['data']} in the data, {r['default']['topology']} selected"
+                           for r in closed)
+               + ": no degree tried comes apart into the mesh's separate parts, so no degree has the data's "
+               "topology and the choice stays (the strict rule keeps the best F-score, as before).")
+    wrong_default = [r for r in rows if r["confidence"] == "high" and r["default"]["matches"] is False]
+    if wrong_default:
+        out.append(f"- The default keeps another topology than the data's on {len(wrong_default)} shapes where "
+                   "no degree of the data's topology (as fitted or repaired) comes within the rule's tolerance "
+                   "of the best clean F-score (the strict rule's F there): "
+                   + ", ".join(f"{r['shape']} ({r['default']['f_score']:.3f}; {r['after']['f_score']:.3f})"
+                               for r in wrong_default) + ".")
+    total = {key: sum(r[key]["seconds"] for r in rows) for key, _ in RUNS}
+    out.append(f"- Time over all {len(rows)} shapes: default {total['default'] / total['before']:.2f}×, strict "
+               f"{total['after'] / total['before']:.2f}× the time before ({total['before']:.0f} s); a repair that "
+               "fails costs most: " + ", ".join(
+                   f"{r['shape']} {r['before']['seconds']:.0f} → {r['default']['seconds']:.0f} s" for r in sorted(
+                       rows, key=lambda r: r["before"]["seconds"] - r["default"]["seconds"])[:3]) + " by default.")
+    for key, label in RUNS[1:]:
+        drops = _drops(rows, key)
+        if drops:
+            wrong = sum(r["before"]["matches"] is False and r[key]["matches"] is True for r in drops)
+            out.append(f"- F-score drops of more than 0.01, {label} against before ({wrong} of {len(drops)} on "
+                       "shapes whose selected zero set had the wrong topology before and the right one after): "
+                       + ", ".join(f"{r['shape']} {r['before']['f_score']:.3f} → {r[key]['f_score']:.3f}"
+                                   for r in drops) + ".")
+        else:
+            out.append(f"- No F-score drop of more than 0.01, {label} against before.")
     return out
 
 
 def markdown(rows: list[dict], every: int, command: str) -> str:
     out = ["# Topology of the selected zero set (issue 31)", "",
-           f"Regenerate with `{command}` (about 15 min on 2 cores); "
+           f"Regenerate with `{command}` (about 25 min on 2 cores); "
            f"{date.today().isoformat()}, Python {platform.python_version()}, seed 0. "
            "Development data, not held out.", "",
-           "Each shape is fitted with the recommended pipeline **before** (`ipfit fit`, the default capture "
-           "rule: the topology reported, not held) and **after** (`ipfit fit --rule topology`: the rule checks "
-           "the data's "
-           "topology where the data tells it with confidence, and the repair holds the places of a wrong "
-           "topology: the neck of a part cut off inside, a loop or bridge in a gap outside). *Correct*: the "
+           "Each shape is fitted with the recommended pipeline three ways: **before** (the capture rule as it "
+           "was: the topology reported, not held), **default** (`ipfit fit` now: when the capture rule's choice "
+           "has another topology than the data's, the lowest degree of the data's topology within the rule's "
+           "tolerance, 0.01, of the best clean F-score, as fitted or repaired to it, is selected instead; "
+           "otherwise the choice stays) and **strict** (`ipfit fit --rule topology`: a degree of another "
+           "topology is not clean, at any cost in F-score). The repair holds the places of a wrong topology: "
+           "the neck of a part cut off inside, a loop or bridge in a gap outside. *Correct*: the "
            "selected zero set has the data's topology (2D: loops and their nesting; 3D: components and the "
-           "genus of each), specks left out (`ipfit.degree.rules.is_speck`). Against a topology of *medium* "
+           "genus of each), specks left out (`ipfit.degree.rules.is_speck`), where the data tells it with "
+           "confidence. Against a topology of *medium* "
            "confidence (an open mesh, its holes capped: an estimate, reported but not enforced) the answer is in "
            "parentheses; `?` where the data's topology is not known (*low*: a mesh whose parts pass through each "
-           "other). A shape whose *after* run never met a degree of the wrong topology is not run "
-           "again: its *before* is the same fit. Seconds are wall-clock with two fits side by side on 2 shared "
-           "cores.", ""]
+           "other). A shape whose strict run never met a degree of the wrong topology is not run "
+           "again: its *before* and *default* are the same fit. Seconds are wall-clock with two fits side by "
+           "side on 2 shared cores.", ""]
     if every > 1:
         nth = {2: "2nd", 3: "3rd"}.get(every, f"{every}th")
         out += [f"The MPEG-7 development set is subsampled: every {nth} of its 140 contours "
                 "(all of them would take too long on the 2 shared cores).", ""]
-    out += ["| set | shapes | known (high) | correct before | correct after | estimated (medium): correct before "
-            "| after | median F before | median F after | F drop > 0.01 | median s before | median s after |",
-            "|---" * 12 + "|"]
+    out += ["| set | shapes | known (high) | correct before | default | strict | median F before | default "
+            "| strict | F drop > 0.01: default | strict | median s before | default | strict |",
+            "|---" * 14 + "|"]
     for group in ("mpeg7-dev", "turk-dev", "bundled", "silhouette"):
         part = [r for r in rows if r["group"] == group]
         if not part:
             continue
-        drops = sum(r["before"]["f_score"] - r["after"]["f_score"] > 0.01 for r in part)
         high = sum(r["confidence"] == "high" for r in part)
-        out.append(f"| {group} | {len(part)} | {high} | {_share(part, 'before')} | {_share(part, 'after')} | "
-                   f"{_share(part, 'before', 'medium')} | {_share(part, 'after', 'medium')} | "
-                   f"{np.median([r['before']['f_score'] for r in part]):.3f} | "
-                   f"{np.median([r['after']['f_score'] for r in part]):.3f} | {drops} | "
-                   f"{np.median([r['before']['seconds'] for r in part]):.1f} | "
-                   f"{np.median([r['after']['seconds'] for r in part]):.1f} |")
+        cells = [_share(part, key) for key, _ in RUNS]
+        cells += [f"{np.median([r[key]['f_score'] for r in part]):.3f}" for key, _ in RUNS]
+        cells += [str(len(_drops(part, key))) for key, _ in RUNS[1:]]
+        cells += [f"{np.median([r[key]['seconds'] for r in part]):.1f}" for key, _ in RUNS]
+        out.append(f"| {group} | {len(part)} | {high} | " + " | ".join(cells) + " |")
+    medium = [r for r in rows if r["confidence"] == "medium"]
+    if medium:
+        out += ["", "Against an estimated topology (medium confidence, not enforced): correct "
+                + ", ".join(f"{label} {_share(medium, key, 'medium')}" for key, label in RUNS) + "."]
     out += ["", "## Notes", ""] + _notes(rows)
     out += ["", "## Every shape", "",
             "| set | shape | points | data's topology (confidence) | before: degree | topology | correct | F | s "
-            "| after: degree | topology | correct | F | s |", "|---" * 14 + "|"]
+            "| default: degree | topology | correct | F | s | strict: degree | topology | correct | F | s |",
+            "|---" * 19 + "|"]
     for r in rows:
         out.append(f"| {r['group']} | {r['shape']} | {r['n']:,} | {r['data']} ({r['confidence']}) | "
-                   f"{_cell(r['before'], r['confidence'])} | {_cell(r['after'], r['confidence'])} |")
+                   + " | ".join(_cell(r[key], r["confidence"]) for key, _ in RUNS) + " |")
     return "\n".join(out) + "\n"
 
 

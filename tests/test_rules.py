@@ -163,7 +163,7 @@ def _blind(name: str = "capture") -> DegreeRule:
     """The rule ``name`` without the topology check (docs/topology.md): a degree of another topology
     than the data's can be clean and is not repaired for it, as before issue 31."""
     rule = type(RULES[name])()
-    rule.checks_topology = False
+    rule.checks_topology = rule.prefers_topology = False
     return rule
 
 
@@ -375,3 +375,57 @@ def test_a_batch_records_its_rule_by_name():
     assert [_rule_name(rule) for rule in (CAPTURE, "paper", "Geometric")] == ["capture", "paper", "Geometric"]
     with pytest.raises(InvalidInputError, match="^rule: expected a rule's name or a rule of ipfit.degree.rules.RULES"):
         _rule_name(LowestClean())
+
+
+# --- the capture rule prefers the data's topology at no cost in F-score (docs/topology.md) ---------
+
+def _topo_entry(degree: int, f: float, loops: int, clean: bool = True):
+    from ipfit.zeroset.topology import Topology
+
+    data = Topology(2, 1, nesting=(0,), source="contour")
+    zero_set = Topology(2, loops, nesting=(0,) + (1,) * (loops - 1))
+    loop = {"size": 1.0, "share": 0.1, "center": [0, 0], "distance": 1.0}
+    q = dataclasses.replace(_quality(f, spurious=() if clean else [loop]), topology=zero_set, data_topology=data)
+    return SimpleNamespace(degree=degree, quality=q, smoothness=0.9, distance=0.1, cleanup=())
+
+
+def _settle(rule, entries, repaired=None):
+    """``rule.settle`` on ``entries``; ``repaired`` maps a degree's index to its repaired variant."""
+    asked = []
+
+    def variant(i):
+        asked.append(i)
+        return entries[i], (repaired or {}).get(i)
+
+    results, index, _ = rule.settle(entries, 0.01, "max_degree", variant)
+    return results[index], asked
+
+
+def test_a_degree_of_the_data_topology_within_the_tolerance_is_preferred():
+    # degree 8 is the capture rule's choice (lowest within 0.01 of the best, 0.995) but has 3
+    # loops; degree 10 has 1 loop at 0.988, inside the band: it is selected, no repair needed
+    path = [_topo_entry(6, 0.90, 1), _topo_entry(8, 0.992, 3), _topo_entry(10, 0.988, 1), _topo_entry(12, 0.995, 3)]
+    chosen, asked = _settle(CAPTURE, path)
+    assert chosen.degree == 10 and asked == [1]     # degree 8 was asked for a repair first, and had none
+    assert CAPTURE.select(path, 0.01, "max_degree")[0] == 1   # select alone: the capture choice
+    assert "has the data's topology" in CAPTURE.reason(path, 1, 2, "", 0.01)
+    assert "with the data's topology" in CAPTURE.explain(path, 2, "max_degree", 0.01)
+
+
+def test_a_repaired_degree_takes_its_place_only_within_the_tolerance():
+    path = [_topo_entry(6, 0.90, 1), _topo_entry(8, 0.995, 3)]
+    good, poor = _topo_entry(8, 0.986, 1), _topo_entry(8, 0.984, 1)
+    assert _settle(CAPTURE, path, {1: good})[0] is good                # 0.986 >= 0.995 - 0.01
+    assert _settle(CAPTURE, path, {1: poor})[0] is path[1]             # 0.984 is not: the choice stays
+    unclean = _topo_entry(8, 0.99, 1, clean=False)
+    assert _settle(CAPTURE, path, {1: unclean})[0] is path[1]          # nor is a repair that is not clean
+    # degree 6 has the data's topology but is far below the band: never taken for it
+    assert _settle(CAPTURE, path)[0] is path[1]
+
+
+def test_a_choice_of_the_data_topology_is_left_alone():
+    path = [_topo_entry(6, 0.992, 1), _topo_entry(8, 0.995, 3)]
+    chosen, asked = _settle(CAPTURE, path, {1: _topo_entry(8, 1.0, 1)})
+    assert chosen is path[0] and asked == []          # no repair is even tried
+    # a rule that does not prefer the topology never asks for one
+    assert _settle(_blind(), [path[1], _topo_entry(10, 0.99, 1)])[1] == []

@@ -58,6 +58,17 @@ class Progress:
             self._normals(event)
         elif kind == "iteration":
             self._iteration(event)
+        elif kind == "topology_repair":
+            self._close_bar()
+            self._degree, self._stage = event["degree"], None
+            if "matches" not in event:
+                self._line(f"degree {event['degree']}: {event['mismatch']}; repairing it to the data's topology")
+            elif event["matches"]:
+                self._line(f"degree {event['degree']}: repaired to the data's topology, F-score "
+                           f"{event['f_score']:.3f} ({event['seconds']:.1f} s)")
+            else:
+                self._line(f"degree {event['degree']}: the repair did not reach the data's topology within the "
+                           f"rule's tolerance ({event['seconds']:.1f} s)")
         elif kind == "degree_done":
             self._close_bar()
             q = event.get("quality")

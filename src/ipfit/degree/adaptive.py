@@ -52,8 +52,19 @@ from ..normals import estimate_normals
 from ..polynomial import ImplicitPolynomial
 from ..robust import OutlierScore, check_outliers, score_outliers
 from ..zeroset.quality import Quality, looks_like_contour, quality
+from ..zeroset.topology import Topology, describe_mismatch
 from .repair import repair
-from .rules import RULES, DegreeRule, get_rule, select_degree, select_degree_geometric, topology_differs
+from .rules import (
+    RULES,
+    TOLERANCE,
+    TOPOLOGY,
+    DegreeRule,
+    TopologyRule,
+    get_rule,
+    select_degree,
+    select_degree_geometric,
+    topology_differs,
+)
 
 __all__ = ["fit_adaptive", "AdaptiveResult", "DegreeResult", "select_degree", "select_degree_geometric",
            "fixed_degree_methods", "RULES"]
@@ -325,7 +336,9 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
         all inliers. The result records the decision (:attr:`AdaptiveResult.outliers`).
     rng : seed or Generator (SPEC 7), passed to the metaheuristics.
     progress : called with a dict per event ('degree_start', 'iteration' with its 'stage',
-        'degree_done'; 'normals' while normals are estimated, see :func:`ipfit.estimate_normals`).
+        'degree_done'; 'normals' while normals are estimated, see :func:`ipfit.estimate_normals`;
+        'topology_repair' with its 'degree', 'mismatch' and, once done, 'f_score' and 'matches'
+        when the rule repairs a degree to the data's topology after the loop).
 
     Returns
     -------
@@ -409,6 +422,8 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
     degrees = list(range(min_degree, top + 1, 2)) if top > min_degree else [min_degree]
     start = time.perf_counter()
     results: list[DegreeResult] = []
+    # per degree, for a repair after the loop: its fit before any repair, its refit, its warm start
+    unrepaired: list[tuple[DegreeResult, Callable[..., DegreeResult], ImplicitPolynomial | None]] = []
     reason = "max_degree"
     for degree in degrees:
         if progress is not None:
@@ -416,14 +431,14 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
         try:
             entry = before_repair = _fit_degree(fitter, cloud, unit, degree, delta, measured, ordered_contour)
             best_f = rule.best_clean_f(results)
-            if measured and fitter.options is not None and not rule.is_done(entry, best_f):
-                def refit(options, start, keep_clear, degree=degree):
-                    return _fit_degree(fitter, cloud, unit, degree, delta, True, ordered_contour,
-                                       options=options, extra_starts=[start], method="polish",
-                                       keep_clear=keep_clear)
 
-                before_repair = entry
+            def refit(options, start, keep_clear, degree=degree):
+                return _fit_degree(fitter, cloud, unit, degree, delta, True, ordered_contour,
+                                   options=options, extra_starts=[start], method="polish", keep_clear=keep_clear)
+
+            if measured and fitter.options is not None and not rule.is_done(entry, best_f):
                 entry = repair(entry, refit, fitter.options, cloud, ordered_contour, rule, best_f)
+            unrepaired.append((before_repair, refit, fitter.previous))
         except KeyboardInterrupt:
             if not results:
                 raise
@@ -442,7 +457,25 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
         if stop is not None:
             reason = stop
             break
-    index, reason, message = _select(results, rule, epsilon, reason, fixed=len(degrees) == 1)
+    variant = None
+    if measured and fitter.options is not None and rule.prefers_topology and reason != "interrupted":
+        def variant(i: int) -> tuple[DegreeResult, DegreeResult | None]:
+            fit, refit, fitter.previous = unrepaired[i]  # the polish starts as it did in the loop
+            q = cast(Quality, results[i].quality)
+            event = {"event": "topology_repair", "degree": results[i].degree,
+                     "mismatch": describe_mismatch(cast(Topology, q.topology), cast(Topology, q.data_topology))}
+            if progress is not None:
+                progress(event)
+            entry, repaired = _topology_variant(results[i], fit, refit, cast(SearchOptions, fitter.options), cloud,
+                                                ordered_contour, rule.best_clean_f(results))
+            if progress is not None:
+                done = cast(Quality, (repaired or entry).quality)
+                progress({**event, "f_score": done.f_score, "matches": repaired is not None,
+                          "seconds": entry.seconds - results[i].seconds})
+            return entry, repaired
+
+    results, index, reason, message = _select(results, rule, epsilon, reason, fixed=len(degrees) == 1,
+                                              variant=variant)
     results = [dataclasses.replace(r, reason=rule.reason(results, i, index, message, epsilon))
                for i, r in enumerate(results)]
     chosen = results[index]
@@ -465,13 +498,39 @@ def _kept_faces(faces: NDArray[np.int64] | None, keep: NDArray[np.bool_]) -> NDA
     return kept if len(kept) else None
 
 
-def _select(results, rule: DegreeRule, epsilon: float, reason: str, fixed: bool) -> tuple[int, str, str]:
-    """``(index, reason, message)``: the rule's choice among ``results`` and its explanation; a
-    single degree asked for (``fixed``) leaves no choice to a rule."""
+class _WithinTolerance(TopologyRule):
+    """The topology rule, its repair going on until a clean zero set of the data's topology is
+    within the capture rule's tolerance of ``best_f`` (the variants :func:`_topology_variant` makes)."""
+
+    def is_done(self, entry, best_f=0.0):
+        return self.is_clean(entry.quality) and entry.quality.f_score >= best_f - TOLERANCE
+
+
+def _topology_variant(entry: DegreeResult, unrepaired: DegreeResult, refit: Callable[..., DegreeResult],
+                      options: SearchOptions, cloud: Cloud, ordered_contour,
+                      best_f: float) -> tuple[DegreeResult, DegreeResult | None]:
+    """``entry`` (a degree as its rule repaired it, of another topology than the data's) with the
+    rounds of the topology rule's repair of its unrepaired fit recorded, and that repair when it
+    reached a clean zero set of the data's topology (else None); the repair goes on until one is
+    within the tolerance of ``best_f``. Both carry every round of both repairs, their evaluations
+    and their time."""
+    repaired = repair(unrepaired, refit, options, cloud, ordered_contour, _WithinTolerance(), best_f)
+    totals = {"cleanup": tuple(entry.cleanup) + tuple(repaired.cleanup),
+              "nfev": entry.nfev + repaired.nfev - unrepaired.nfev,
+              "seconds": entry.seconds + sum(a["seconds"] for a in repaired.cleanup)}
+    fixed = repaired is not unrepaired and TOPOLOGY.is_clean(repaired.quality)
+    return dataclasses.replace(entry, **totals), dataclasses.replace(repaired, **totals) if fixed else None
+
+
+def _select(results, rule: DegreeRule, epsilon: float, reason: str, fixed: bool,
+            variant=None) -> tuple[list[DegreeResult], int, str, str]:
+    """``(results, index, reason, message)``: the results as the rule settles them (``variant``:
+    see :meth:`~ipfit.degree.rules.DegreeRule.settle`), its choice among them and its explanation;
+    a single degree asked for (``fixed``) leaves no choice to a rule."""
     if fixed and reason != "interrupted":
-        return 0, "fixed", f"fixed degree {results[0].degree}"
-    index, reason = rule.select(results, epsilon, reason)
-    return index, reason, rule.explain(results, index, reason, epsilon)
+        return list(results), 0, "fixed", f"fixed degree {results[0].degree}"
+    results, index, reason = rule.settle(results, epsilon, reason, variant)
+    return results, index, reason, rule.explain(results, index, reason, epsilon)
 
 
 def check_settings(method, options, rule, epsilon, delta, min_degree,

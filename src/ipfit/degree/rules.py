@@ -11,7 +11,11 @@
 * **select** the lowest clean degree whose F-score is within :data:`TOLERANCE` of the best
   clean F-score, so simple shapes keep low degrees and a degree that bulges (lower precision,
   hence lower F) is not preferred over one that does not. With no clean degree, the highest
-  F-score (and ``success`` is False).
+  F-score (and ``success`` is False);
+* **prefer the data's topology** where the data tells it with confidence: when that choice has
+  another, the lowest degree of the band (within :data:`TOLERANCE` of the best clean F-score)
+  that has the data's topology, as fitted or repaired to it, is selected instead
+  (:meth:`CaptureRule.settle`); with none, the choice stays and its topology is reported.
 
 *Clean* (:func:`is_clean`) means no spurious component that matters, no open piece near
 the data, and for the ``"topology"`` rule the data's topology where the data tells it with
@@ -26,8 +30,8 @@ near the data closes in the box.
 ``"paper"`` is Algorithm 1 exactly: stop as soon as the smoothness gains no more than ε and
 take the previous degree. ``"geometric"`` (the rule before ``"capture"``) is the same rule
 restricted to degrees whose zero set is strictly clean (no spurious component, closed inside
-the box) when one exists. ``"topology"`` is the capture rule that also holds the data's
-topology (:class:`TopologyRule`, not the default yet). Every degree also gets a one-line reason (selected, rejected, not
+the box) when one exists. ``"topology"`` is the capture rule that holds the data's topology at
+any cost in F-score (:class:`TopologyRule`). Every degree also gets a one-line reason (selected, rejected, not
 needed, superseded), stored in the result.
 
 Each rule is one object, a :class:`DegreeRule` (:data:`CAPTURE`, :data:`GEOMETRIC`,
@@ -42,7 +46,7 @@ protocol); registering it in :data:`RULES` makes its name accepted too.
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import TYPE_CHECKING, TypeGuard
 
 from .._utils.validation import check_choice, error
@@ -274,6 +278,10 @@ class DegreeRule(ABC):
     checks_topology : bool
         Whether a zero set of another topology than the data's (known with confidence) is not
         clean, and the repair tries to fix it (:func:`topology_differs`).
+    prefers_topology : bool
+        Whether, when the choice has another topology than the data's, :meth:`settle` looks for
+        a degree of the data's topology at no cost in F-score, repairing degrees to it (as
+        :data:`TOPOLOGY` does) where needed (see :class:`CaptureRule`).
     max_degrees : Mapping[int, int]
         The last degree tried when the caller gives none, per dimension (:meth:`max_degree`).
     points_per_coefficient : int
@@ -285,6 +293,7 @@ class DegreeRule(ABC):
     measured: bool = True
     ignore_specks: bool = False
     checks_topology: bool = False
+    prefers_topology: bool = False
     max_degrees: Mapping[int, int] = DEFAULT_MAX_DEGREE
     points_per_coefficient: int = 1
 
@@ -318,6 +327,16 @@ class DegreeRule(ABC):
         """``(index, reason)``: the index into ``results`` of the selected degree, and the
         result's reason. ``reason`` is how the loop ended: what :meth:`stop` returned,
         ``'max_degree'`` or ``'interrupted'`` (Ctrl-C: ``results`` are the degrees finished)."""
+
+    def settle(self, results: Sequence[DegreeResult], epsilon: float, reason: str,
+               variant: Callable[[int], tuple[DegreeResult, DegreeResult | None]] | None = None,
+               ) -> tuple[list[DegreeResult], int, str]:
+        """``(results, index, reason)``: :meth:`select`'s choice, with ``results`` as the loop ends
+        them. A rule that :attr:`prefers_topology` may ask ``variant(i)`` for degree ``i`` repaired
+        to the data's topology: it returns ``results[i]`` with that repair's rounds recorded, and
+        the repaired degree when it is clean and of the data's topology (else None). Default: the
+        results as they are, the choice :meth:`select`'s."""
+        return list(results), *self.select(results, epsilon, reason)
 
     def explain(self, results: Sequence[DegreeResult], index: int, reason: str, epsilon: float) -> str:
         """The result's message: which degree was selected and why, in words."""
@@ -416,10 +435,21 @@ class GeometricRule(PaperRule):
 class CaptureRule(DegreeRule):
     """The default rule: go on while a degree gains substantially, stop once the shape is
     captured or :data:`PATIENCE` degrees gain nothing, select the lowest clean degree within
-    :data:`TOLERANCE` of the best clean F-score (see the module's notes). Specks do not count."""
+    :data:`TOLERANCE` of the best clean F-score (see the module's notes). Specks do not count.
+
+    The data's topology, where the data tells it with confidence, is preferred at no cost in
+    F-score: when the choice above has another topology than the data's, the lowest clean degree
+    within :data:`TOLERANCE` of the best clean F-score that has the data's topology, as fitted or
+    repaired to it (a neck held inside, a gap outside: the :data:`TOPOLOGY` rule's repair, tried
+    on the degrees of that band only, lowest first), is selected instead. Where no such degree
+    exists (a thin part that can only join the outline at
+    a cost in F-score) the choice stays, its topology reported; the ``"topology"`` rule holds the
+    topology at any cost.
+    """
 
     name = "capture"
     ignore_specks = True
+    prefers_topology = True
     max_degrees = CAPTURE_MAX_DEGREE
     # Near interpolation a fit follows the points and wiggles between them; the capture rule's
     # higher default degrees would get there on small clouds.
@@ -445,6 +475,30 @@ class CaptureRule(DegreeRule):
                                       [self.is_clean(r.quality) for r in results])
         return index, reason
 
+    def settle(self, results, epsilon, reason, variant=None):
+        results = list(results)
+        index, reason = self.select(results, epsilon, reason)
+        chosen = results[index]
+        if not self.prefers_topology or variant is None or not self.is_clean(chosen.quality) or \
+                not topology_differs(chosen.quality):
+            return results, index, reason
+        # The choice has another topology than the data's: the lowest degree within the band of
+        # the best clean F-score that has the data's, as fitted or repaired to it (repairs only
+        # for the degrees of the band, lowest first: each costs a few polishes).
+        best = max(r.quality.f_score for r in results if self.is_clean(r.quality))
+        for i in sorted(range(len(results)), key=lambda i: results[i].degree):
+            entry = results[i]
+            if not self.is_clean(entry.quality) or entry.quality.f_score < best - TOLERANCE:
+                continue
+            if not topology_differs(entry.quality):
+                return results, i, reason
+            results[i], repaired = variant(i)
+            if repaired is not None and self.is_clean(repaired.quality) and \
+                    repaired.quality.f_score >= best - TOLERANCE:
+                results[i] = repaired
+                return results, i, reason
+        return results, index, reason
+
     def explain(self, results, index, reason, epsilon):
         chosen = results[index]
         stop = {"captured": f"the shape was captured (F-score >= {1 - TOLERANCE:g} on a clean degree)",
@@ -454,8 +508,15 @@ class CaptureRule(DegreeRule):
         if not self.is_clean(chosen.quality):
             return (f"degree {chosen.degree}: no degree tried is clean, so the lowest degree within {TOLERANCE:g} "
                     f"of the best F-score was taken ({chosen.quality.f_score:.3f}); the loop stopped: {stop}")
-        return (f"degree {chosen.degree}: the lowest clean degree within {TOLERANCE:g} of the best clean F-score "
-                f"({chosen.quality.f_score:.3f}); the loop stopped: {stop}")
+        right = not topology_differs(chosen.quality)
+        lower_wrong = any(self.is_clean(r.quality) and topology_differs(r.quality) and r.degree < chosen.degree
+                          and r.quality.f_score >= chosen.quality.f_score - TOLERANCE for r in results)
+        # its own fit had another topology, and a repair round gave it the data's
+        repaired = " (repaired to the data's topology)" if right and self.prefers_topology and any(
+            a.get("topology_matches") is False for a in chosen.cleanup) else ""
+        which = "clean degree with the data's topology" if lower_wrong and right else "clean degree"
+        return (f"degree {chosen.degree}{repaired}: the lowest {which} within {TOLERANCE:g} of the best clean "
+                f"F-score ({chosen.quality.f_score:.3f}); the loop stopped: {stop}")
 
     def reason(self, results, i, index, message, epsilon):
         entry, chosen = results[i], results[index]
@@ -469,21 +530,27 @@ class CaptureRule(DegreeRule):
         if f < best - TOLERANCE:
             return (f"superseded: F-score {f:.3f} is more than {TOLERANCE:g} below degree {chosen.degree}'s "
                     f"{best:.3f}" + tail)
+        if topology_differs(entry.quality) and not topology_differs(chosen.quality):
+            return (f"clean, F-score {f:.3f} within {TOLERANCE:g} of the best, but "
+                    f"{describe_mismatch(entry.quality.topology, entry.quality.data_topology)}; degree "  # type: ignore[arg-type]
+                    f"{chosen.degree} has the data's topology" + tail)
         return f"clean, F-score {f:.3f} within {TOLERANCE:g} of the best, but degree {chosen.degree} is lower" + tail
 
 
 class TopologyRule(CaptureRule):
-    """The capture rule that also holds the data's topology: a degree whose zero set has other
-    loops (2D) or components and genus (3D) than the data, where the data tells them with
-    confidence (:func:`topology_differs`), is not clean, and the repair tries to fix it first.
+    """The capture rule that holds the data's topology at any cost in F-score: a degree whose
+    zero set has other loops (2D) or components and genus (3D) than the data, where the data
+    tells them with confidence (:func:`topology_differs`), is not clean, and the repair tries to
+    fix it first.
 
-    Not the default yet: on the development contours it gives every outline one loop (140 of 140,
-    against 112), but parts thinner than the tolerance then cost F (14 of 146 shapes lose more than
-    0.01, the bundled butterfly 0.975 → 0.921; ``docs/topology.md``).
+    The default capture rule only prefers the data's topology within its tolerance; this one
+    gives every development outline one loop, where parts thinner than the tolerance cost F-score
+    when they must join the outline (``docs/topology.md``).
     """
 
     name = "topology"
     checks_topology = True
+    prefers_topology = False  # it holds the topology outright
 
 
 CAPTURE = CaptureRule()

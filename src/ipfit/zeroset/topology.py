@@ -457,7 +457,7 @@ def _disc_union_holes(pts: NDArray, radius: float, labels: NDArray, kept: NDArra
 # -- where the zero set's inside and the data's disagree -----------------------------------------
 
 def topology_samples(poly: ImplicitPolynomial, cloud: Cloud, *, ordered_contour: bool = False, most: int = 400,
-                     margin: float = 0.25) -> NDArray[np.float64]:
+                     margin: float = 0.25, far: float | None = None) -> NDArray[np.float64]:
     """Up to ``most`` places where the inside of ``poly`` (the sign it has on most of the data's
     inside) disagrees with the data's where that changes the topology: the neck of a thin part
     the zero set cut off (inside for the data), a bridge the zero set threw across a gap, a
@@ -471,6 +471,13 @@ def topology_samples(poly: ImplicitPolynomial, cloud: Cloud, *, ordered_contour:
     loop, an extra hole); bands along the data where the zero set is merely a little off do not.
     Each region that matters gets an equal share of the places, those farthest from the data
     first (the middle of a neck or of a gap).
+
+    With ``far`` (a distance), up to ``most`` more places: every node of the raster where the
+    two insides disagree farther than ``far`` from the data, evenly thinned. Which regions change
+    the topology is a judgement on a raster; where a zero set crosses itself or runs in a thin
+    gap the regions found are too small to move it, and holding every clear disagreement does
+    (the horse silhouette's degree 14 under three seeds: one loop in 3 of 3 with them, 1 of 3
+    without).
     """
     inside, nodes, _ = _data_inside(cloud, ordered_contour, margin)
     if inside is None:
@@ -508,7 +515,15 @@ def topology_samples(poly: ImplicitPolynomial, cloud: Cloud, *, ordered_contour:
             if len(touches[touches > 0]) >= 2 or len(joins[joins > 0]) >= 2 or whole:
                 idx = np.argwhere(mask) + [sl.start for sl in grown]
                 regions.append(idx)
-    return _spread_places(regions, nodes, cloud, most)
+    places = _spread_places(regions, nodes, cloud, most)
+    if far is None:
+        return places
+    wrong = np.argwhere(inside != f_inside)
+    at = np.column_stack([nodes[j][wrong[:, j]] for j in range(cloud.dim)])
+    clear = at[cloud.kdtree.query(at)[0] > far]
+    if len(clear) > most:  # evenly over the raster's order: every part of every region keeps some
+        clear = clear[np.linspace(0, len(clear) - 1, most).astype(np.int64)]
+    return np.concatenate([places, clear])
 
 
 def _spread_places(regions: list[NDArray], nodes: list[NDArray], cloud: Cloud, most: int) -> NDArray[np.float64]:
