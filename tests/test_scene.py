@@ -105,6 +105,63 @@ def test_touching_objects_reported_as_one_and_said_so(capsys, tmp_path):
     assert "may be two touching objects" in data["segmentation"]["message"]
 
 
+def _noisy(rng, clean, sigma):
+    return clean + rng.normal(0, sigma, clean.shape)
+
+
+def _spacing(points):
+    from scipy.spatial import cKDTree
+
+    return float(np.median(cKDTree(points).query(points, k=2)[0][:, 1]))
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2, 3])
+def test_noisy_spheres_four_spacings_apart_are_two_objects(seed):
+    # noise of 0.5 % of a sphere's diagonal (0.4 spacing): the isotropic link at 3 local spacings
+    # joined them (0 of 6 seeds apart); the links across the gap run along both surfaces' normals
+    rng = np.random.default_rng(seed)
+    a = _sphere(rng, 1500, [0, 0, 0], 1.0)
+    b = _sphere(rng, 1500, [2 + 4 * _spacing(a), 0, 0], 1.0)
+    seg = segment(_noisy(rng, np.vstack([a, b]), 0.005 * 2 * np.sqrt(3)))
+    assert len(seg.objects) == 2
+    for cluster in seg.objects:
+        mine = cluster.indices < 1500
+        assert mine.all() or not mine.any()
+        assert cluster.n_points > 0.95 * 1500
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_thin_legged_body_stays_one_object(seed):
+    # a body with four legs as thin as the noise is wide and sampled along them only: a leg's
+    # neighbourhood is a line, its pieces join the body
+    rng = np.random.default_rng(seed)
+    body = _sphere(rng, 1500, [0, 0, 0], 1.0) * [1.0, 0.6, 0.4]
+    legs = []
+    for angle in (0.6, 2.5, 3.8, 5.7):
+        t = rng.uniform(0, 1, 60)
+        start = np.array([0.8 * np.cos(angle), 0.5 * np.sin(angle), 0.0])
+        end = start * 1.6 + [0, 0, -1.0]
+        legs.append(start + t[:, None] * (end - start) + rng.normal(0, 0.01, (60, 3)))
+    clean = np.vstack([body, *legs])
+    seg = segment(_noisy(rng, clean, 0.005 * 2.5), outliers="none")
+    assert len(seg.objects) == 1
+    assert seg.objects[0].n_points > 0.95 * len(clean)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_small_piece_near_a_body_joins_it_a_larger_one_does_not(seed):
+    # the same density on both (119 points per unit area), 5 spacings apart: a piece of 6 % of
+    # the body's points is a part of it (a cable, a cut-off bit), one of 25 % is an object
+    rng = np.random.default_rng(seed)
+    body = _sphere(rng, 1500, [0, 0, 0], 1.0)
+    gap = 5 * _spacing(body)
+    piece = _sphere(rng, 94, [1.25 + gap, 0, 0], 0.25)
+    other = _sphere(rng, 375, [-1.5 - gap, 0, 0], 0.5)
+    seg = segment(_noisy(rng, np.vstack([body, piece, other]), 0.005 * 2 * np.sqrt(3)))
+    assert len(seg.objects) == 2
+    assert np.mean(seg.labels[:1594] == 0) > 0.97
+    assert np.mean(seg.labels[1594:] == 1) > 0.97
+
 # -- images --------------------------------------------------------------------------------------
 def _three_shapes_png(path):
     from PIL import Image

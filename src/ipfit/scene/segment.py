@@ -1,6 +1,6 @@
 """Segmentation of a scan into objects, with no setting to tune for ordinary scans.
 
-Four steps, each a well-kept library's:
+Five steps, each on a well-kept library:
 
 1. **Stray returns** are set aside by :func:`ipfit.robust.score_outliers` (its noise scale and
    spacing are the scan's; they size the next steps).
@@ -9,17 +9,30 @@ Four steps, each a well-kept library's:
    to their inliers by least squares and removed while each holds at least ``plane_share`` of the
    points still in play (3D only: in 2D a "plane" is a line, and lines are what shapes are made of).
 3. **Objects** are the connected components (``scipy.sparse.csgraph.connected_components``) of
-   the graph linking two points when one is within ``link`` of the other (default
+   a graph on the points' surfaces. Each point gets a surface frame from its 20 nearest
+   neighbours: the normal of their plane (PCA) and its position moved along it onto its own
+   sheet (the median offset of the neighbours within one local spacing or 2.5 noise scales of
+   it: the noise no longer closes gaps, and another object across a gap is outside that window).
+   Two moved points are linked when one is within ``link`` of the other (default
    :data:`LINK_SPACINGS` × its local spacing: the median, over it and its nearest neighbours, of
    their distances to their nearest neighbour, :attr:`ipfit.Cloud.spacing`, so that a sparse
-   table and a dense toy of one scan are each linked at their own scale): a random sample of a
-   surface stays connected at that reach (a point has about 6 neighbours within it, above the
-   percolation threshold of a random graph on a surface, near 4.5).
-4. **Clutter**: components of fewer than ``min_points`` points are reported, not fitted.
+   table and a dense toy of one scan are each linked at their own scale; a random sample of a
+   surface stays connected at that reach, about 6 neighbours, above the percolation threshold
+   of a random graph on a surface, near 4.5) and the link leaves neither point's plane by more
+   than :data:`NORMAL_SPACINGS` local spacing: a surface's own links lie in it, while two objects
+   facing each other across a gap would be linked along their normals. A thin part (a leg, a
+   wire) has a neighbourhood shaped like a line, whose "normal" is across it, so links along it
+   stay.
+4. **Parts**: a component holding at most :data:`ATTACH_SHARE` of the points of a group within
+   :data:`ATTACH_LINKS` link distances of it joins the nearest such group, smallest first: the
+   sparse pieces of a leg or a cable, and what the plane's removal cut off, are parts of their
+   object, while the objects of a scene are much larger shares of each other.
+5. **Clutter**: components of fewer than ``min_points`` points are reported, not fitted.
 
 Each object is then checked for a **neck** (:func:`neck`): two parts joined by far fewer links
 than a single body has across any cut, the sign of two objects that touch and so cannot be told
-apart by connectivity. Such an object is kept as one and said to be so.
+apart by connectivity. Such an object is kept as one and said to be so. At the noise of
+docs/scenes.md (about 0.4 spacing), objects closer than 3-4 spacings still merge this way.
 
 Images are segmented by :func:`ipfit.io.silhouettes.trace_silhouettes`: every separate silhouette.
 """
@@ -35,11 +48,23 @@ from .._utils.validation import as_points, check_int, error
 from ..exceptions import InvalidInputError
 
 __all__ = ["PlaneModel", "Plane", "Cluster", "Segmentation", "segment", "neck", "local_spacing", "LINK_SPACINGS",
-           "PLANE_SHARE",
+           "NORMAL_SPACINGS", "ATTACH_SHARE", "ATTACH_LINKS", "PLANE_SHARE",
            "MIN_POINTS", "OBJECT", "PLANE", "CLUTTER", "OUTLIER"]
 
 #: The link distance of the connectivity, in median spacings (see the module notes).
 LINK_SPACINGS = 3.0
+#: A link may leave a point's surface by at most this many local spacings along the surface's
+#: normal (see the module notes): two objects facing each other across a gap are linked along
+#: their normals, a surface's own links lie in it.
+NORMAL_SPACINGS = 1.0
+#: A component holding at most this share of the points of a group within :data:`ATTACH_LINKS`
+#: link distances of it is a part of that group (a leg, a cable, a piece cut off by the plane's
+#: removal), not an object. In the 40 counting scenes of experiments/scenes.py the smallest object
+#: holds at least 6.4 % of the largest of its scene, and the fragments the isotropic link left
+#: (walkman cables, ant legs) 4-9 % of their object; 0.07 and 0.15 count one scene fewer.
+ATTACH_SHARE = 0.1
+#: How far (in link distances) a small component's parent may be.
+ATTACH_LINKS = 2.0
 #: Smallest share of the points still in play that a plane must hold to be removed as dominant.
 PLANE_SHARE = 0.15
 #: Fewest points of an object, per dimension: a smaller component is clutter. A degree-4 surface
@@ -63,6 +88,13 @@ _NECK_K = 6
 _NECK_MAX_POINTS = 3000
 # Fewer points than this: no neck test (the ratio's reference needs a well-sampled body).
 _NECK_MIN_POINTS = 400
+# The neighbours of a point's surface frame (its normal and its denoised position); 16-28 give
+# the same counts on the development scenes (docs/scenes.md), 20 is their middle.
+_FRAME_K = 20
+# Components of fewer points are stray returns, never attached to an object.
+_ATTACH_MIN_POINTS = 3
+# Surface frames are computed this many points at a time (the neighbourhoods are k x dim arrays).
+_FRAME_CHUNK = 20_000
 
 
 class PlaneModel:
@@ -218,7 +250,8 @@ def segment(points: ArrayLike, *, planes: bool | None = None, outliers: str | fl
     outliers : 'auto' (default), 'none' or a share: the stray returns set aside first
         (:func:`ipfit.robust.score_outliers`).
     link : the connectivity's link distance in data units (default :data:`LINK_SPACINGS` × each
-        point's local spacing, :func:`local_spacing`).
+        point's local spacing, :func:`local_spacing`); a link also stays within
+        :data:`NORMAL_SPACINGS` local spacing of both points' planes (see the module notes).
     min_points : fewest points of an object; smaller components are clutter (default
         :data:`MIN_POINTS`).
     plane_share : smallest share of the points in play a plane must hold to be removed.
@@ -281,7 +314,9 @@ def segment(points: ArrayLike, *, planes: bool | None = None, outliers: str | fl
     objects: list[Cluster] = []
     clutter: list[Cluster] = []
     if len(keep):
-        component = _components(pts[keep], LINK_SPACINGS * local_spacing(pts[keep]) if link is None else link)
+        local = local_spacing(pts[keep])
+        component = _surface_components(pts[keep], LINK_SPACINGS * local if link is None else np.full(len(keep), link),
+                                        local, noise)
         sizes = np.bincount(component)
         for c in np.argsort(-sizes, kind="stable"):
             members = keep[component == c]
@@ -329,6 +364,120 @@ def _components(points: NDArray[np.float64], reach: NDArray[np.float64] | float)
         cols = np.fromiter((j for b in balls for j in b), dtype=np.int64, count=len(rows))
     graph = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(len(points), len(points)))
     return connected_components(graph, directed=False)[1]
+
+
+def _surface_frame(points: NDArray[np.float64], local: NDArray[np.float64],
+                   noise: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Each point's surface normal and its position moved onto its surface.
+
+    The normal is the direction of least spread of its :data:`_FRAME_K` nearest neighbours
+    (PCA); the position moves along it to the median offset of the neighbours within a window
+    (one local spacing or 2.5 noise scales, whichever is larger) around the point's own sheet,
+    found in two steps: a second surface nearby (another object across a gap) is outside the
+    window, so the point is not pulled towards it.
+    """
+    from scipy.spatial import cKDTree
+
+    n = len(points)
+    k = min(_FRAME_K, n)
+    _, near = cKDTree(points).query(points, k=k)
+    normals = np.empty_like(points)
+    moved = np.empty_like(points)
+    window = np.maximum(local, 2.5 * noise)
+    for start in range(0, n, _FRAME_CHUNK):
+        part = slice(start, min(start + _FRAME_CHUNK, n))
+        hood = points[near[part]]
+        spread = hood - hood.mean(axis=1, keepdims=True)
+        _, vectors = np.linalg.eigh(np.einsum("nki,nkj->nij", spread, spread))
+        normal = vectors[:, :, 0]
+        centre, _ = _sheet(np.einsum("nkd,nd->nk", hood - points[part, None, :], normal), window[part])
+        normals[part] = normal
+        moved[part] = points[part] + centre[:, None] * normal
+    return normals, moved
+
+
+def _sheet(offset: NDArray[np.float64], window: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """The median offset of a point's own sheet (the neighbours within ``window`` of it, two
+    steps from the point itself) and how many neighbours it holds."""
+    centre = np.zeros(len(offset))
+    for _ in range(2):
+        inside = np.abs(offset - centre[:, None]) <= window[:, None]
+        # the point itself (offset 0) is inside the first window: never an empty slice
+        centre = np.nanmedian(np.where(inside, offset, np.nan), axis=1)
+        centre = np.where(np.isfinite(centre), centre, 0.0)
+    inside = np.abs(offset - centre[:, None]) <= window[:, None]
+    return centre, inside.sum(axis=1)
+
+
+def _surface_components(points: NDArray[np.float64], reach: NDArray[np.float64], local: NDArray[np.float64],
+                        noise: float) -> NDArray[np.int64]:
+    """Connected components of the surface-aware graph (see the module notes), small parts attached."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
+    n = len(points)
+    if n < 3:
+        return _components(points, reach)
+    normals, moved = _surface_frame(points, local, noise)
+    tree = cKDTree(moved)
+    balls = tree.query_ball_point(moved, reach, workers=-1)
+    rows = np.repeat(np.arange(n), [len(b) for b in balls])
+    cols = np.fromiter((j for b in balls for j in b), dtype=np.int64, count=len(rows))
+    step = moved[cols] - moved[rows]
+    tolerance = NORMAL_SPACINGS * local
+    along = (np.abs(np.einsum("nd,nd->n", step, normals[rows])) <= tolerance[rows]) & \
+            (np.abs(np.einsum("nd,nd->n", step, normals[cols])) <= tolerance[cols])
+    graph = coo_matrix((np.ones(int(along.sum())), (rows[along], cols[along])), shape=(n, n))
+    component = connected_components(graph, directed=False)[1]
+    return _attach(tree, moved, component, ATTACH_LINKS * reach, local)
+
+
+def _attach(tree, points: NDArray[np.float64], component: NDArray[np.int64], reach: NDArray[np.float64],
+            local: NDArray[np.float64]) -> NDArray[np.int64]:
+    """Small components join larger ones; components are renumbered 0, 1, ...
+
+    Smallest first, each component of at most :data:`ATTACH_SHARE` of the largest joins the
+    nearest (in local spacings, within ``reach`` of one of its points) group holding at least
+    1 / :data:`ATTACH_SHARE` times its points; a group is what has joined so far, so the sparse
+    pieces of a cable join the body one after the other and then carry the headphones at its end.
+    """
+    sizes = np.bincount(component)
+    small = (sizes >= _ATTACH_MIN_POINTS) & (sizes <= ATTACH_SHARE * sizes.max())
+    members = np.flatnonzero(small[component])
+    if not len(members):
+        return component
+    balls = tree.query_ball_point(points[members], reach[members], workers=-1)
+    rows = np.repeat(members, [len(b) for b in balls])
+    cols = np.fromiter((j for b in balls for j in b), dtype=np.int64, count=len(rows))
+    mine, theirs = component[rows], component[cols]
+    other = (mine != theirs) & (sizes[theirs] >= _ATTACH_MIN_POINTS)
+    rows, cols, mine, theirs = rows[other], cols[other], mine[other], theirs[other]
+    gap = np.linalg.norm(points[cols] - points[rows], axis=1) / local[rows]
+    order = np.lexsort((gap, mine))
+    mine, theirs = mine[order], theirs[order]
+    starts = np.searchsorted(mine, np.arange(len(sizes) + 1))
+    parent = np.arange(len(sizes))
+    held = sizes.copy()
+
+    def root(c: int) -> int:
+        while parent[c] != c:
+            parent[c] = parent[parent[c]]
+            c = parent[c]
+        return c
+
+    for c in np.argsort(sizes, kind="stable"):
+        if not small[c]:
+            continue
+        here = root(int(c))
+        for t in theirs[starts[c]:starts[c + 1]]:
+            there = root(int(t))
+            if there != here and ATTACH_SHARE * held[there] >= held[here]:
+                parent[here] = there
+                held[there] += held[here]
+                break
+    roots = np.array([root(c) for c in range(len(sizes))])
+    return np.unique(roots[component], return_inverse=True)[1].astype(np.int64)
 
 
 def _dominant_plane(pts, keep, threshold: float, share: float, reach: float | None, generator) -> Plane | None:
