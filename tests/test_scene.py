@@ -162,6 +162,21 @@ def test_small_piece_near_a_body_joins_it_a_larger_one_does_not(seed):
     assert np.mean(seg.labels[:1594] == 0) > 0.97
     assert np.mean(seg.labels[1594:] == 1) > 0.97
 
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_a_few_strays_far_from_an_object_do_not_join_it(seed):
+    # 20 strays in a loose patch 1.5 radii off a dense sphere, 0.4 apart: they link to each other
+    # at their own wide spacing, and by their reach alone they joined the sphere (and bent its fit)
+    rng = np.random.default_rng(seed)
+    body = _sphere(rng, 1500, [0, 0, 0], 1.0)
+    y, z = np.meshgrid(np.arange(5) * 0.4 - 0.8, np.arange(4) * 0.4 - 0.6)
+    strays = np.column_stack([np.full(20, 2.5), y.ravel(), z.ravel()]) + rng.normal(0, 0.03, (20, 3))
+    seg = segment(np.vstack([body, strays]), outliers="none")
+    assert len(seg.objects) == 1
+    members = seg.objects[0].indices
+    assert np.all(members < 1500) and len(members) > 0.99 * 1500
+    assert sum(c.n_points for c in seg.clutter) >= 20     # the strays: clutter, not a part
+
+
 # -- images --------------------------------------------------------------------------------------
 def _three_shapes_png(path):
     from PIL import Image

@@ -438,7 +438,7 @@ def _attach(tree, points: NDArray[np.float64], component: NDArray[np.int64], rea
     """Small components join larger ones; components are renumbered 0, 1, ...
 
     Smallest first, each component of at most :data:`ATTACH_SHARE` of the largest joins the
-    nearest (in local spacings, within ``reach`` of one of its points) group holding at least
+    nearest (in local spacings, within ``reach`` of one of its points and of the point reached) group holding at least
     1 / :data:`ATTACH_SHARE` times its points; a group is what has joined so far, so the sparse
     pieces of a cable join the body one after the other and then carry the headphones at its end.
     """
@@ -451,9 +451,13 @@ def _attach(tree, points: NDArray[np.float64], component: NDArray[np.int64], rea
     rows = np.repeat(members, [len(b) for b in balls])
     cols = np.fromiter((j for b in balls for j in b), dtype=np.int64, count=len(rows))
     mine, theirs = component[rows], component[cols]
-    other = (mine != theirs) & (sizes[theirs] >= _ATTACH_MIN_POINTS)
+    distance = np.linalg.norm(points[cols] - points[rows], axis=1)
+    # within the reach of the point reached too: a stray's own spacing is wide (it is alone), and
+    # by it alone a few strays joined an apple from a diagonal away and pulled its fit to an
+    # ellipsoid (docs/scenes.md, scene 6)
+    other = (mine != theirs) & (sizes[theirs] >= _ATTACH_MIN_POINTS) & (distance <= reach[cols])
     rows, cols, mine, theirs = rows[other], cols[other], mine[other], theirs[other]
-    gap = np.linalg.norm(points[cols] - points[rows], axis=1) / local[rows]
+    gap = distance[other] / local[rows]
     order = np.lexsort((gap, mine))
     mine, theirs = mine[order], theirs[order]
     starts = np.searchsorted(mine, np.arange(len(sizes) + 1))
