@@ -380,7 +380,9 @@ def page(data: dict) -> str:
               f"* **Per-object median F ≥ 0.95 against the object's own clean surface**: not met, and not by the "
               f"scene: the objects found reach a median F of "
               f"{np.median([o['f'] for r in fits_all for o in r['per_object'] if o['f'] is not None and o['main']]):.2f}"
-              ", the same objects fitted alone from their own points about the same (below): thin and flat meshes "
+              + (f", the same objects fitted alone from their own points "
+                 f"{np.median([f for a in data['alone'] for f in a['f']]):.2f} (below)" if data.get("alone") else "")
+              + ": thin and flat meshes "
               "(scissors, airplane, ant, f16) are beyond today's fit at this noise, the round ones are at 0.93-0.99.",
               f"* **No polynomial spans two objects** among the scenes' separate objects: "
               f"{sum(o['spans'] for r in fits_all for o in r['per_object'])} in {len(fits_all)} fitted scenes; objects "
