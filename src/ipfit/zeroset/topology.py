@@ -476,8 +476,8 @@ def topology_samples(poly: ImplicitPolynomial, cloud: Cloud, *, ordered_contour:
     two insides disagree farther than ``far`` from the data, evenly thinned. Which regions change
     the topology is a judgement on a raster; where a zero set crosses itself or runs in a thin
     gap the regions found are too small to move it, and holding every clear disagreement does
-    (the horse silhouette's degree 14 under three seeds: one loop in 3 of 3 with them, 1 of 3
-    without).
+    (the horse silhouette's degree 14, whose hind legs cross and whose front legs enclose a loop:
+    ``tests/test_topology.py`` fits it under several seeds).
     """
     inside, nodes, _ = _data_inside(cloud, ordered_contour, margin)
     if inside is None:
