@@ -93,8 +93,6 @@ _NECK_MIN_POINTS = 400
 _FRAME_K = 20
 # Components of fewer points are stray returns, never attached to an object.
 _ATTACH_MIN_POINTS = 3
-# Surface frames are computed this many points at a time (the neighbourhoods are k x dim arrays).
-_FRAME_CHUNK = 20_000
 
 
 class PlaneModel:
@@ -359,11 +357,17 @@ def _components(points: NDArray[np.float64], reach: NDArray[np.float64] | float)
         pairs = tree.query_pairs(float(reach), output_type="ndarray")
         rows, cols = pairs[:, 0], pairs[:, 1]
     else:
-        balls = tree.query_ball_point(points, np.asarray(reach), workers=-1)
-        rows = np.repeat(np.arange(len(points)), [len(b) for b in balls])
-        cols = np.fromiter((j for b in balls for j in b), dtype=np.int64, count=len(rows))
+        rows, cols = _ball_pairs(tree, points, np.asarray(reach))
     graph = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(len(points), len(points)))
     return connected_components(graph, directed=False)[1]
+
+
+def _ball_pairs(tree, centres: NDArray[np.float64],
+                reach: NDArray[np.float64]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """``(rows, cols)``: each centre's index (into ``centres``) beside every tree point within its ``reach``."""
+    balls = tree.query_ball_point(centres, reach, workers=-1)
+    rows = np.repeat(np.arange(len(centres)), [len(b) for b in balls])
+    return rows, np.fromiter((j for b in balls for j in b), dtype=np.int64, count=len(rows))
 
 
 def _surface_frame(points: NDArray[np.float64], local: NDArray[np.float64],
@@ -371,42 +375,36 @@ def _surface_frame(points: NDArray[np.float64], local: NDArray[np.float64],
     """Each point's surface normal and its position moved onto its surface.
 
     The normal is the direction of least spread of its :data:`_FRAME_K` nearest neighbours
-    (PCA); the position moves along it to the median offset of the neighbours within a window
-    (one local spacing or 2.5 noise scales, whichever is larger) around the point's own sheet,
-    found in two steps: a second surface nearby (another object across a gap) is outside the
-    window, so the point is not pulled towards it.
+    (:func:`ipfit.normals.local.pca`); the position moves along it to the median offset of the
+    neighbours within a window (one local spacing or 2.5 noise scales, whichever is larger)
+    around the point's own sheet, found in two steps: a second surface nearby (another object
+    across a gap) is outside the window, so the point is not pulled towards it.
     """
     from scipy.spatial import cKDTree
 
-    n = len(points)
-    k = min(_FRAME_K, n)
+    from ..normals.local import blocks, pca
+
+    k = min(_FRAME_K, len(points))
     _, near = cKDTree(points).query(points, k=k)
-    normals = np.empty_like(points)
+    normals, _ = pca(points, near)
     moved = np.empty_like(points)
     window = np.maximum(local, 2.5 * noise)
-    for start in range(0, n, _FRAME_CHUNK):
-        part = slice(start, min(start + _FRAME_CHUNK, n))
-        hood = points[near[part]]
-        spread = hood - hood.mean(axis=1, keepdims=True)
-        _, vectors = np.linalg.eigh(np.einsum("nki,nkj->nij", spread, spread))
-        normal = vectors[:, :, 0]
-        centre, _ = _sheet(np.einsum("nkd,nd->nk", hood - points[part, None, :], normal), window[part])
-        normals[part] = normal
-        moved[part] = points[part] + centre[:, None] * normal
+    for part in blocks(len(points), k):
+        offset = np.einsum("nkd,nd->nk", points[near[part]] - points[part, None, :], normals[part])
+        moved[part] = points[part] + _sheet(offset, window[part])[:, None] * normals[part]
     return normals, moved
 
 
-def _sheet(offset: NDArray[np.float64], window: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
-    """The median offset of a point's own sheet (the neighbours within ``window`` of it, two
-    steps from the point itself) and how many neighbours it holds."""
+def _sheet(offset: NDArray[np.float64], window: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The median offset of a point's own sheet: the neighbours within ``window`` of it, two
+    steps from the point itself."""
     centre = np.zeros(len(offset))
     for _ in range(2):
         inside = np.abs(offset - centre[:, None]) <= window[:, None]
         # the point itself (offset 0) is inside the first window: never an empty slice
         centre = np.nanmedian(np.where(inside, offset, np.nan), axis=1)
         centre = np.where(np.isfinite(centre), centre, 0.0)
-    inside = np.abs(offset - centre[:, None]) <= window[:, None]
-    return centre, inside.sum(axis=1)
+    return centre
 
 
 def _surface_components(points: NDArray[np.float64], reach: NDArray[np.float64], local: NDArray[np.float64],
@@ -421,9 +419,7 @@ def _surface_components(points: NDArray[np.float64], reach: NDArray[np.float64],
         return _components(points, reach)
     normals, moved = _surface_frame(points, local, noise)
     tree = cKDTree(moved)
-    balls = tree.query_ball_point(moved, reach, workers=-1)
-    rows = np.repeat(np.arange(n), [len(b) for b in balls])
-    cols = np.fromiter((j for b in balls for j in b), dtype=np.int64, count=len(rows))
+    rows, cols = _ball_pairs(tree, moved, reach)
     step = moved[cols] - moved[rows]
     tolerance = NORMAL_SPACINGS * local
     along = (np.abs(np.einsum("nd,nd->n", step, normals[rows])) <= tolerance[rows]) & \
@@ -438,8 +434,8 @@ def _attach(tree, points: NDArray[np.float64], component: NDArray[np.int64], rea
     """Small components join larger ones; components are renumbered 0, 1, ...
 
     Smallest first, each component of at most :data:`ATTACH_SHARE` of the largest joins the
-    nearest (in local spacings, within ``reach`` of one of its points and of the point reached) group holding at least
-    1 / :data:`ATTACH_SHARE` times its points; a group is what has joined so far, so the sparse
+    nearest (in local spacings, within ``reach`` of one of its points and of the point reached)
+    group holding at least 1 / :data:`ATTACH_SHARE` times its points; a group is what has joined so far, so the sparse
     pieces of a cable join the body one after the other and then carry the headphones at its end.
     """
     sizes = np.bincount(component)
@@ -447,9 +443,8 @@ def _attach(tree, points: NDArray[np.float64], component: NDArray[np.int64], rea
     members = np.flatnonzero(small[component])
     if not len(members):
         return component
-    balls = tree.query_ball_point(points[members], reach[members], workers=-1)
-    rows = np.repeat(members, [len(b) for b in balls])
-    cols = np.fromiter((j for b in balls for j in b), dtype=np.int64, count=len(rows))
+    at, cols = _ball_pairs(tree, points[members], reach[members])
+    rows = members[at]
     mine, theirs = component[rows], component[cols]
     distance = np.linalg.norm(points[cols] - points[rows], axis=1)
     # within the reach of the point reached too: a stray's own spacing is wide (it is alone), and
