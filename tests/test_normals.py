@@ -344,6 +344,32 @@ def test_noisy_bunny_res2(fraction, flipped, rng):
     assert normal_agreement(estimated[resolvable], reference[resolvable]).flipped_fraction < 0.03
 
 
+def plate(n, extents, rng):
+    """``n`` points uniform on the surface of a box with these extents (centred), and their face normals."""
+    extents = np.asarray(extents, float)
+    areas = np.array([extents[1] * extents[2], extents[0] * extents[2], extents[0] * extents[1]])
+    axis = rng.choice(3, size=n, p=areas / areas.sum())
+    side = rng.choice([-1.0, 1.0], size=n)
+    points = (rng.random((n, 3)) - 0.5) * extents
+    points[np.arange(n), axis] = side * extents[axis] / 2
+    normals = np.zeros((n, 3))
+    normals[np.arange(n), axis] = side
+    return points, normals
+
+
+def test_noisy_thin_plate_keeps_its_two_sides(rng):
+    """A small cloud under heavy noise: a plate 1 × 1 × 0.1, 2,000 points, σ = 1 % of its diagonal.
+
+    Neighbourhoods wide enough to reach both faces look flatter than the noise-dominated small
+    ones (they see the plate, not averaged noise); when the noise handling grew to them, both
+    faces took one side's sign: 46-50 % flipped (seeds 0-7). Measured with neighbourhoods kept
+    within 8 % of the diagonal (normals.scale): 2.5-4.0 %.
+    """
+    points, truth = plate(2000, (1.0, 1.0, 0.1), rng)
+    noisy, _ = add_noise(points, 0.01, rng)
+    assert normal_agreement(estimate_normals(noisy), truth).flipped_fraction < 0.08
+
+
 def test_noisy_result_does_not_depend_on_point_order(rng):
     clean, _ = bundled.load_dataset("boot")
     noisy, _ = add_noise(clean, 0.01, rng)

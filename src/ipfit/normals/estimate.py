@@ -178,8 +178,10 @@ def estimate_normals(points: ArrayLike, k: int | None = None, *, orient: bool = 
 
     Noisy data (noise wider than the k nearest neighbours) are detected and handled apart:
     each point's neighbourhood is grown to the scale where it looks flattest (up to 32k
-    points, see :func:`noise_scale`), and the signs are propagated on a denoised, coarser
-    sample of the shape, from which each point takes its own (see :func:`orient_coarse`).
+    points; in 3D at most 8 % of the cloud's box diagonal wide, beyond which a neighbourhood
+    sees the object's overall shape rather than averaged noise; see :func:`noise_scale`), and
+    the signs are propagated on a denoised, coarser sample of the shape, from which each point
+    takes its own (see :func:`orient_coarse`).
     Parts thinner than a few times the noise (a butterfly's antennae under noise wider than
     they are) cannot be told apart and come out with one side flipped. A noisy cloud of more
     than 40,000 points is estimated on an even sample of 40,000 of them, and each point takes
