@@ -42,7 +42,7 @@ _MAX_GROWTH = 32
 _MAX_WIDE_K = 400
 _GAIN = 0.75
 # A surface's neighbourhood is local while its radius (median over the points) is at most this
-# share of the cloud's box diagonal; wider ones are neither tried nor count as evidence of noise.
+# share of the cloud's box diagonal; wider ones are not chosen and do not count as evidence of noise.
 # On small clouds under heavy noise (the Turk turbine, hammerhead and airplane: 1,300-3,300
 # points at σ = 1 % of the diagonal) only neighbourhoods of 10-16 % of the diagonal looked
 # flatter, because they see the object's overall shape, not averaged noise: their normals were
@@ -92,7 +92,8 @@ def noise_scale(points: NDArray, tree: cKDTree, idx: NDArray[np.intp], flatness:
     Each point gets the scale (k doubled 1 to 5 times) at which the surface variation, averaged
     over its k nearest neighbours to steady it, is least: where the shape is smooth that is a
     wide neighbourhood that averages the noise; near thin parts and tight bends, where wide
-    neighbourhoods take in the other side or the bend, a narrower one.
+    neighbourhoods take in the other side or the bend, a narrower one. In 3D only local
+    neighbourhoods count (at most ``_LOCAL_REACH`` of the box diagonal wide, see there).
     """
     n, k = idx.shape
     dim = points.shape[1]
