@@ -71,6 +71,38 @@ def test_two_spheres_and_a_plane_segmented(seed):
     assert set(np.unique(seg.kinds)) <= {OBJECT, PLANE, CLUTTER, OUTLIER}
 
 
+def _box_surface(rng, n, lo, hi):
+    """Points uniform on a box's faces but its bottom (it stands on a table); ``n`` before that cut."""
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+    extent = hi - lo
+    areas = np.array([extent[1] * extent[2], extent[0] * extent[2], extent[0] * extent[1]])
+    axis = rng.choice(3, size=n, p=areas / areas.sum())
+    top = rng.integers(0, 2, n) == 1
+    points = lo + rng.random((n, 3)) * extent
+    points[np.arange(n), axis] = np.where(top, hi[axis], lo[axis])
+    return points[~((axis == 2) & ~top)]
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2, 3])
+def test_a_box_on_a_table_keeps_its_faces(seed):
+    """The box's top (a third of the points left once the table is gone) is a plane RANSAC finds;
+    its rim meets the box's sides all round, so it is a face, not a support (before: the top and
+    two sides removed as planes, the box in three pieces)."""
+    rng = np.random.default_rng(seed)
+    box = _box_surface(rng, 2600, [-1.0, -0.8, -1.1], [1.0, 0.8, -0.1])
+    ball = _sphere(rng, 700, [2.8, 0, -0.6], 0.5)
+    table = np.column_stack([rng.uniform(-2, 4.5, 2500), rng.uniform(-2.5, 2.5, 2500), np.full(2500, -1.1)])
+    table = table[~((np.abs(table[:, 0]) < 1) & (np.abs(table[:, 1]) < 0.8))]  # hidden under the box
+    truth = np.concatenate([np.zeros(len(box)), np.ones(len(ball)), np.full(len(table), -1)])
+    pts = np.vstack([box, ball, table]) + rng.normal(0, 0.003, (len(truth), 3))
+    seg = segment(pts, rng=seed)
+    assert len(seg.planes) == 1 and abs(abs(seg.planes[0].normal[2]) - 1) < 1e-3
+    assert len(seg.objects) == 2
+    for k, cluster in enumerate(seg.objects):  # the box is the larger
+        assert np.mean(truth[cluster.indices] == k) > 0.97
+        assert np.mean(seg.labels[truth == k] == k) > 0.95
+
+
 @pytest.mark.parametrize("seed", [0, 3])
 def test_two_spheres_and_a_plane_fitted_radii_to_one_percent(seed):
     pts, _ = _two_spheres_on_a_plane(seed)

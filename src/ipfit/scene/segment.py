@@ -7,7 +7,9 @@ Five steps, each on a well-kept library:
 2. **Dominant planes** (a floor, a table top, a wall) are found by RANSAC
    (``skimage.measure.ransac`` with :class:`PlaneModel`, scikit-image's model protocol), refitted
    to their inliers by least squares and removed while each holds at least ``plane_share`` of the
-   points still in play (3D only: in 2D a "plane" is a line, and lines are what shapes are made of).
+   points still in play and is a support, not an object's face: a face's rim meets the object's
+   other faces all round, a table's is the edge of the scan (3D only: in 2D a "plane" is a line,
+   and lines are what shapes are made of).
 3. **Objects** are the connected components (``scipy.sparse.csgraph.connected_components``) of
    a graph on the points' surfaces. Each point gets a surface frame from its 20 nearest
    neighbours: the normal of their plane (PCA) and its position moved along it onto its own
@@ -75,6 +77,9 @@ MIN_POINTS = {2: 30, 3: 70}
 PLANE_SCALES = 3.0
 #: At most this many planes are removed.
 MAX_PLANES = 4
+#: A plane whose rim is beside off-plane points over more than this share is an object's face,
+#: not removed (see :func:`_is_a_face`).
+FACE_RIM_SHARE = 0.5
 #: What a point is, in :attr:`Segmentation.kinds`.
 OBJECT, PLANE, CLUTTER, OUTLIER = 0, 1, 2, 3
 # A neck: the best cut along the graph's Fiedler vector crosses fewer than this share of the
@@ -502,12 +507,39 @@ def _dominant_plane(pts, keep, threshold: float, share: float, reach: float | No
         return None
     on = np.flatnonzero(inliers)
     # linked at its points' own spacing: a table is often sampled sparser (or denser) than the objects
-    patch = _components(data[on], reach if reach is not None else LINK_SPACINGS * local_spacing(data[on]))
+    link = np.full(len(on), reach) if reach is not None else LINK_SPACINGS * local_spacing(data[on])
+    patch = _components(data[on], link)
     largest = np.bincount(patch).argmax()
-    on = on[patch == largest]
+    on, link = on[patch == largest], link[patch == largest]
     if len(on) < share * len(data):
         return None
-    return Plane(np.asarray(model.normal, dtype=np.float64), model.offset, keep[on], float(threshold))
+    normal = np.asarray(model.normal, dtype=np.float64)
+    if _is_a_face(data, on, link, normal, ~inliers):
+        return None
+    return Plane(normal, model.offset, keep[on], float(threshold))
+
+
+def _is_a_face(data: NDArray[np.float64], on: NDArray[np.intp], link: NDArray[np.float64], normal: NDArray[np.float64],
+               off: NDArray[np.bool_]) -> bool:
+    """Whether the plane patch ``data[on]`` is a face of an object rather than a support: most of
+    its rim (its points within a spacing of its outline, the convex hull of the patch in the
+    plane) lies within a link of points off the plane (``off``). A table's or a floor's rim is the
+    edge of the scan, a wall's meets the floor removed before it; a box's top meets its sides all
+    round (a box on a table lost its top and two sides as planes before this test)."""
+    from scipy.spatial import ConvexHull, QhullError, cKDTree
+
+    if not off.any():
+        return False
+    frame = np.linalg.svd(np.eye(3) - np.outer(normal, normal))[0][:, :2]  # two axes in the plane
+    flat = data[on] @ frame
+    try:
+        hull = ConvexHull(flat)
+    except QhullError:  # a patch on one line has no outline to speak of
+        return False
+    inside = -(flat @ hull.equations[:, :2].T + hull.equations[:, 2]).max(axis=1)  # distance to the outline
+    rim = inside <= link / LINK_SPACINGS  # within a spacing of the outline
+    nearest = cKDTree(data[off]).query(data[on][rim])[0]
+    return bool(np.mean(nearest <= link[rim]) > FACE_RIM_SHARE)
 
 
 def neck(points: ArrayLike, rng=0) -> tuple[float, NDArray[np.bool_]]:
