@@ -9,7 +9,7 @@ DEMO_OUT ?= demo-output
 DOCS_STAMP := $(VENV)/.ipfit-docs-installed
 DOCS_OUT ?= build/docs
 
-.PHONY: demo lint test test-slow test-all bench bench-pipeline reproduce docs dist wheel-smoke clean
+.PHONY: demo lint test test-slow test-all bench bench-pipeline bench-peers reproduce docs dist wheel-smoke clean
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -51,6 +51,12 @@ bench: $(STAMP)
 # million points: docs/performance.md and docs/spurious.md (about half an hour on 2 cores).
 bench-pipeline: $(STAMP)
 	$(BIN)/python benchmarks/bench_pipeline.py
+
+# ipfit against Open3D's screened Poisson (depth 6 and 8) on the bunny, the apple, the duck and the
+# bunny's surface sampled to 10^6 points: docs/peers.md (Open3D installed with the test extra; about
+# half an hour on 2 cores).
+bench-peers: $(STAMP)
+	$(BIN)/python benchmarks/bench_peers.py --million
 
 reproduce: $(STAMP)
 	$(BIN)/ipfit reproduce -o docs/reproduction
