@@ -103,6 +103,24 @@ def test_a_box_on_a_table_keeps_its_faces(seed):
         assert np.mean(seg.labels[truth == k] == k) > 0.95
 
 
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_a_floor_and_a_wall_are_both_supports(seed):
+    """A room's corner: the floor and the wall are removed (the wall's rim meets only the floor,
+    removed before it), the ball in front of them is the one object."""
+    rng = np.random.default_rng(seed)
+    floor = np.column_stack([rng.uniform(-2, 4, 3000), rng.uniform(-2, 3, 3000), np.zeros(3000)])
+    wall = np.column_stack([rng.uniform(-2, 4, 2000), np.full(2000, 3.0), rng.uniform(0, 3, 2000)])
+    ball = _sphere(rng, 900, [1.0, 0.5, 0.7], 0.6)
+    truth = np.concatenate([np.full(len(floor), -1), np.full(len(wall), -2), np.zeros(len(ball))])
+    pts = np.vstack([floor, wall, ball]) + rng.normal(0, 0.003, (len(truth), 3))
+    seg = segment(pts, rng=seed)
+    assert len(seg.planes) == 2
+    assert sorted(np.argmax(np.abs(p.normal)) for p in seg.planes) == [1, 2]  # the wall's y, the floor's z
+    assert len(seg.objects) == 1
+    assert np.mean(truth[seg.objects[0].indices] == 0) > 0.97
+    assert np.mean(seg.labels[truth == 0] == 0) > 0.95
+
+
 @pytest.mark.parametrize("seed", [0, 3])
 def test_two_spheres_and_a_plane_fitted_radii_to_one_percent(seed):
     pts, _ = _two_spheres_on_a_plane(seed)
