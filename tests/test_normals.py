@@ -370,6 +370,21 @@ def test_noisy_thin_plate_keeps_its_two_sides(rng):
     assert normal_agreement(estimate_normals(noisy), truth).flipped_fraction < 0.08
 
 
+@pytest.mark.slow
+def test_noisy_thin_plate_is_fitted(rng):
+    """The plate above through the whole fit: its zero set lies on the clean plate (F-score at
+    2 % of the diagonal, against 20,000 samples of its faces): 0.999-1.000 at seeds 0-3, where
+    the normals of the wide neighbourhoods gave 0.48-0.54."""
+    from ipfit import fit_adaptive
+    from ipfit.zeroset.quality import quality
+
+    points, _ = plate(2000, (1.0, 1.0, 0.1), rng)
+    noisy, _ = add_noise(points, 0.01, rng)
+    dense, _ = plate(20_000, (1.0, 1.0, 0.1), np.random.default_rng(1))
+    result = fit_adaptive(noisy, rng=0)
+    assert quality(result.polynomial, dense).f_score > 0.95
+
+
 def test_noisy_result_does_not_depend_on_point_order(rng):
     clean, _ = bundled.load_dataset("boot")
     noisy, _ = add_noise(clean, 0.01, rng)
