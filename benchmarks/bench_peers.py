@@ -54,7 +54,6 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 TOOLS = ("ipfit", "ipfit fit (command)", "Poisson d6", "Poisson d8")
 TRIM_QUANTILE = 0.01
-TAU_FRACTION = 0.02
 SAMPLES = 200_000
 GRID = 128
 MARGIN = 0.25
@@ -133,6 +132,7 @@ def child(tool: str, data: str, out: str, name: str) -> None:
                       bytes=8 * poly.n_coefficients)
         vertices, faces = _zero_set(poly, points)
     elif tool == "ipfit fit (command)":
+        import ipfit
         from ipfit.cli import main
 
         start = time.perf_counter()
@@ -142,7 +142,7 @@ def child(tool: str, data: str, out: str, name: str) -> None:
         if code not in (0, None):
             raise SystemExit(f"ipfit fit {name} exited with {code}")
         prefix = Path(str(Path(out).with_suffix("")) + "-fit")
-        poly = __import__("ipfit").ImplicitPolynomial.load(prefix.with_suffix(".json"))
+        poly = ipfit.ImplicitPolynomial.load(prefix.with_suffix(".json"))
         record.update(size=f"{poly.n_coefficients} coefficients", bytes=8 * poly.n_coefficients)
         vertices, faces = _zero_set(poly, points)
     else:
@@ -185,7 +185,9 @@ def _score(vertices: np.ndarray, faces: np.ndarray, points: np.ndarray) -> dict:
     from scipy.sparse.csgraph import connected_components
     from scipy.spatial import cKDTree
 
-    tau = TAU_FRACTION * float(np.linalg.norm(points.max(axis=0) - points.min(axis=0)))
+    from ipfit.geometry.distance import DEFAULT_TAU_FRACTION  # quality()'s τ
+
+    tau = DEFAULT_TAU_FRACTION * float(np.linalg.norm(points.max(axis=0) - points.min(axis=0)))
     if len(faces) == 0:
         return {"f_score": 0.0, "precision": 0.0, "recall": 0.0, "spurious": 0, "tau": tau}
     samples, face = surface_samples(vertices, faces, SAMPLES)
