@@ -35,6 +35,9 @@ _IRLS_STEPS = 2
 # query beyond its k points (leverage > 1) is extrapolated, and dividing by its full leverage
 # would let a far outlier on the extension of a patch pass as a sample of it.
 _LEVERAGE_CAP = 1.0
+# Queries whose frames are held at once (see fit_local): 4k = 48 neighbours of 2^16 queries
+# are 50 MB of distances and indices.
+_QUERIES = 1 << 16
 
 
 class LocalFit(NamedTuple):
@@ -118,10 +121,25 @@ def fit_local(ref: NDArray, query: NDArray, own: NDArray[np.intp], k: int, reach
     workers : threads for the neighbour search
     """
     n = len(query)
-    dist, wide, least = _frames(cKDTree(ref), query, own, k, reach, workers)
+    tree = cKDTree(ref)
     residual, offset, extent = np.empty(n), np.empty(n), np.empty(n)
     chosen = np.empty((n, k), dtype=np.intp)
-    for rows in blocks(n, 4 * wide.shape[1]):
+    least = np.inf
+    # The frames are found a slice of queries at a time: at 4k neighbours each, a million
+    # queries' distances and indices at once are 768 MB (it was a fit's peak memory).
+    for part in range(0, n, _QUERIES):
+        at = slice(part, min(part + _QUERIES, n))
+        dist, wide, nearest = _frames(tree, query[at], own[at], k, reach, workers)
+        least = min(least, nearest)
+        _fit_frames(ref, query[at], dist, wide, k, residual[at], offset[at], extent[at], chosen[at])
+    return LocalFit(residual, offset, chosen, extent, least)
+
+
+def _fit_frames(ref: NDArray, query: NDArray, dist: NDArray, wide: NDArray[np.intp], k: int,
+                residual: NDArray, offset: NDArray, extent: NDArray, chosen: NDArray[np.intp]) -> None:
+    """The quadric fits of ``query``'s frames (``dist``, ``wide`` from :func:`_frames`), written
+    into the views ``residual``, ``offset``, ``extent`` and ``chosen``."""
+    for rows in blocks(len(query), 4 * wide.shape[1]):
         inside = np.isfinite(dist[rows])
         rel = ref[wide[rows]] - query[rows][:, None, :]
         # the frame: PCA of the points within reach, about their centroid
@@ -145,7 +163,6 @@ def fit_local(ref: NDArray, query: NDArray, own: NDArray[np.intp], k: int, reach
         extent[rows] = rms
         with np.errstate(divide="ignore", invalid="ignore"):
             offset[rows] = np.where(rms > 0, np.sqrt(np.einsum("mt,mt->m", mean, mean)) / rms, 0.0)
-    return LocalFit(residual, offset, chosen, extent, least)
 
 
 def _solve(design: NDArray, h: NDArray, w: NDArray, leverage: bool = False):
