@@ -211,3 +211,46 @@ def test_auto_search_settings_depend_on_the_dimension():
     nrm = np.column_stack([np.cos(t), 2 * np.sin(t)]) / np.hypot(np.cos(t), 2 * np.sin(t))[:, None]
     result = ipfit.refine(pts, nrm, 2, options=ipfit.RECOMMENDED.replace(iterations=2), rng=0)
     assert result.info["search_points_used"] == 1000 and result.info["polish_iterations"] == 300
+
+
+def test_a_big_cloud_is_fitted_on_an_even_subsample_then_on_every_point(seed):
+    # SearchOptions.fit_points: the degree loop runs on that many points spread evenly, the
+    # selected degree is polished and measured on every point (in the whole cloud's coordinates).
+    from ipfit.zeroset.quality import quality
+
+    shape = synthetic.torus(8000, rng=np.random.default_rng(seed))
+    events = []
+    res = fit_adaptive(shape.points, shape.normals, rng=seed, options=ipfit.RECOMMENDED.replace(fit_points=2000),
+                       progress=events.append)
+    assert res.selected_degree == 4
+    assert "degrees fitted on 2,000 of the 8,000 points spread evenly" in res.message
+    assert [e for e in events if e["event"] == "every_point"] == [
+        {"event": "every_point", "degree": 4, "n_points": 8000, "fit_points": 2000}]
+    chosen = res.at_degree(4)
+    assert chosen.polynomial is res.polynomial
+    assert np.allclose(res.polynomial.center, shape.points.mean(axis=0), rtol=0, atol=1e-12)
+    on_all = quality(res.polynomial, shape.points)
+    assert chosen.quality.f_score == pytest.approx(on_all.f_score, abs=1e-12) and on_all.f_score > 0.999
+    assert np.max(np.abs(res.polynomial.residuals(shape.points))) < 0.01  # the torus (R = 1, r = 0.4)
+    assert ipfit.PAPER.fit_points is None  # the paper fits every degree on every point
+
+
+def test_fit_points_is_checked():
+    with pytest.raises(ipfit.InvalidInputError, match=r"^fit_points: expected an integer >= 1000"):
+        ipfit.RECOMMENDED.replace(fit_points=10)
+
+
+def test_a_polynomial_moved_to_another_normalisation_is_the_same_polynomial(rng):
+    from ipfit.degree.adaptive import _renormalised
+    from ipfit.polynomial import ImplicitPolynomial, Normalization
+
+    shape = synthetic.torus(500, rng=rng)
+    here = Normalization.from_points(shape.points)
+    there = Normalization(here.center + [0.05, -0.02, 0.1], here.scale * 1.07)
+    poly = shape.polynomial
+    moved = ImplicitPolynomial(poly.exponents, _renormalised(poly, there), there)
+    x = rng.uniform(-1.5, 1.5, size=(200, 3))
+    a, b = moved(x), poly(x)
+    scale = np.dot(a, b) / np.dot(b, b)  # a polynomial is its zero set up to a factor
+    assert np.max(np.abs(a - scale * b)) < 1e-8 * np.max(np.abs(a))
+    assert np.linalg.norm(moved.coefficients) == pytest.approx(1.0)

@@ -105,3 +105,28 @@ def test_a_big_cloud_scored_a_slice_of_queries_at_a_time_as_all_at_once(seed, no
     differ = sliced.inliers != whole.inliers
     assert np.all(np.abs(whole.score[differ] - 1.0) < 1e-6)  # only a tie at the threshold may flip
     assert (~whole.inliers)[planted].mean() > 0.5  # strays were found: the weights path ran
+
+
+@pytest.mark.parametrize("share", [0.0, 0.25])
+def test_a_big_cloud_is_scored_against_the_reference_of_a_random_sample(seed, share, monkeypatch):
+    # Above _REFERENCE_POINTS distinct points the rounds run on a random sample of them, then
+    # every point is scored once against that reference: the same decisions as the full rounds.
+    from ipfit.robust import score
+
+    rng = np.random.default_rng(seed)
+    surface = synthetic.torus(6000, rng=rng).points
+    cloud, planted = with_outliers(surface, share, rng) if share else (surface, np.zeros(len(surface), bool))
+    full = score_outliers(cloud)
+    monkeypatch.setattr(score, "_REFERENCE_POINTS", 2500)
+    sampled = score_outliers(cloud)
+    assert sampled.score.shape == (len(cloud),)
+    found = ~sampled.inliers
+    assert found[~planted].mean() <= 0.02
+    if share:
+        on_it = np.abs(np.hypot(np.hypot(*cloud[:, :2].T) - 1.0, cloud[:, 2]) - 0.4) < 0.05  # R = 1, r = 0.4
+        far = planted & ~on_it
+        assert found[far].mean() >= 0.95 and (~full.inliers)[far].mean() >= 0.95
+    else:
+        assert sampled.count == 0 and np.all(sampled.weights == 1.0)
+    assert sampled.noise_scale < 0.01 * np.linalg.norm(np.ptp(surface, axis=0))
+    assert np.array_equal(score_outliers(cloud[::-1]).score[::-1], sampled.score)  # order-free

@@ -69,6 +69,11 @@ class Progress:
             else:
                 self._line(f"degree {event['degree']}: the repair did not reach the data's topology within the "
                            f"rule's tolerance ({event['seconds']:.1f} s)")
+        elif kind == "every_point":
+            self._close_bar()
+            self._degree, self._stage = event["degree"], None
+            self._line(f"degree {event['degree']}: polishing and measuring on all {event['n_points']:,} points "
+                       f"(the degrees were fitted on {event['fit_points']:,} of them spread evenly)")
         elif kind == "degree_done":
             self._close_bar()
             q = event.get("quality")

@@ -47,9 +47,10 @@ from ..fitting.options import (
     REFINE_METHODS,
     SearchOptions,
 )
-from ..fitting.refine import refine
+from ..fitting.refine import FULL_POLISH_ITERATIONS, FULL_POLISH_MIN, FULL_POLISH_POINTS, refine
+from ..geometry.sampling import spread_subsample
 from ..normals import estimate_normals
-from ..polynomial import ImplicitPolynomial
+from ..polynomial import ImplicitPolynomial, Normalization
 from ..robust import OutlierScore, check_outliers, score_outliers
 from ..zeroset.quality import Quality, looks_like_contour, quality
 from ..zeroset.topology import Topology, describe_mismatch
@@ -338,7 +339,10 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
     progress : called with a dict per event ('degree_start', 'iteration' with its 'stage',
         'degree_done'; 'normals' while normals are estimated, see :func:`ipfit.estimate_normals`;
         'topology_repair' with its 'degree', 'mismatch' and, once done, 'f_score' and 'matches'
-        when the rule repairs a degree to the data's topology after the loop).
+        when the rule repairs a degree to the data's topology after the loop; 'every_point' with
+        the 'degree', 'n_points' and 'fit_points' when a big cloud's degrees were fitted on an even
+        subsample of it and the selected one is polished and measured on every point, see
+        :class:`~ipfit.SearchOptions` ``fit_points``).
 
     Returns
     -------
@@ -415,6 +419,9 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
     # normals are ``unit`` normalised once more, as refine and the linear fits have always done
     # with the normals they are given: that rounding is part of every fit's coefficients.
     cloud = Cloud._checked(pts, as_normals(unit, pts), faces, weights)
+    # A big cloud's degrees are fitted on an even subsample of it (SearchOptions.fit_points);
+    # the selected one is polished and measured on every point after the loop.
+    work, work_unit = _working_cloud(cloud, unit, options if method in REFINE_METHODS else None)
     measured = rule.measured
     if measured and ordered_contour is None:
         ordered_contour = dim == 2 and looks_like_contour(pts)
@@ -429,15 +436,15 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
         if progress is not None:
             progress({"event": "degree_start", "degree": degree})
         try:
-            entry = before_repair = _fit_degree(fitter, cloud, unit, degree, delta, measured, ordered_contour)
+            entry = before_repair = _fit_degree(fitter, work, work_unit, degree, delta, measured, ordered_contour)
             best_f = rule.best_clean_f(results)
 
             def refit(options, start, keep_clear, degree=degree):
-                return _fit_degree(fitter, cloud, unit, degree, delta, True, ordered_contour,
+                return _fit_degree(fitter, work, work_unit, degree, delta, True, ordered_contour,
                                    options=options, extra_starts=[start], method="polish", keep_clear=keep_clear)
 
             if measured and fitter.options is not None and not rule.is_done(entry, best_f):
-                entry = repair(entry, refit, fitter.options, cloud, ordered_contour, rule, best_f)
+                entry = repair(entry, refit, fitter.options, work, ordered_contour, rule, best_f)
             unrepaired.append((before_repair, refit, fitter.previous))
         except KeyboardInterrupt:
             if not results:
@@ -466,7 +473,7 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
                      "mismatch": describe_mismatch(cast(Topology, q.topology), cast(Topology, q.data_topology))}
             if progress is not None:
                 progress(event)
-            entry, repaired = _topology_variant(results[i], fit, refit, cast(SearchOptions, fitter.options), cloud,
+            entry, repaired = _topology_variant(results[i], fit, refit, cast(SearchOptions, fitter.options), work,
                                                 ordered_contour, rule.best_clean_f(results))
             if progress is not None:
                 done = cast(Quality, (repaired or entry).quality)
@@ -478,6 +485,13 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
                                               variant=variant)
     results = [dataclasses.replace(r, reason=rule.reason(results, i, index, message, epsilon))
                for i, r in enumerate(results)]
+    if work is not cloud and reason != "interrupted":
+        if progress is not None:
+            progress({"event": "every_point", "degree": results[index].degree, "n_points": len(cloud),
+                      "fit_points": len(work)})
+        results[index] = _on_every_point(fitter, cloud, unit, results[index], delta, measured, ordered_contour, rule)
+        message = (f"{message}; degrees fitted on {len(work):,} of the {len(cloud):,} points spread evenly, "
+                   f"degree {results[index].degree} polished and measured on every point")
     chosen = results[index]
     name = method if isinstance(method, str) else getattr(method, "__name__", "custom")
     success = reason != "interrupted" and rule.success(results, index)
@@ -487,6 +501,50 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
         selected_degree=chosen.degree, degrees=tuple(results), reason=reason, epsilon=epsilon, delta=delta,
         method=name, rule=rule.name, seconds=time.perf_counter() - start,
         options=options if method in REFINE_METHODS else None, outliers=scored)
+
+
+def _working_cloud(cloud: Cloud, unit, options: SearchOptions | None):
+    """The cloud the degree loop fits, and its normals as given: ``cloud`` itself, or an even
+    subsample of ``options.fit_points`` of its points (fixed seed) when it has more."""
+    most = None if options is None else options.fit_points
+    if most is None or len(cloud) <= most:
+        return cloud, unit
+    pick = spread_subsample(cloud, most)
+    return (Cloud._checked(cloud.points[pick], as_normals(unit[pick], cloud.points[pick]), None,
+                           None if cloud.weights is None else cloud.weights[pick]), unit[pick])
+
+
+def _on_every_point(fitter: _Fitter, cloud: Cloud, unit, entry: DegreeResult, delta: float, measured: bool,
+                    ordered_contour, rule: DegreeRule) -> DegreeResult:
+    """``entry`` (a degree fitted on the working subsample) polished on every point of ``cloud``
+    and measured there, with its reason, repairs, evaluations and time carried over. A polish
+    whose zero set is no longer clean where ``entry``'s was gives way to ``entry``'s polynomial,
+    measured on every point."""
+    # A few L-BFGS iterations on every point, as many as refine gives a subsampled polish there:
+    # the start is already polished on the subsample, whose optimum is close to the full one's.
+    budget = max(FULL_POLISH_MIN, int(FULL_POLISH_ITERATIONS * min(1.0, FULL_POLISH_POINTS / len(cloud))))
+    options = cast(SearchOptions, fitter.options).replace(start_fits=(), n_solutions=1, polish_iterations=budget)
+    start = _renormalised(entry.polynomial, Normalization.from_points(cloud.points))
+    full = _fit_degree(fitter, cloud, unit, entry.degree, delta, measured, ordered_contour, options=options,
+                       extra_starts=[start], method="polish")
+    if measured and rule.is_clean(entry.quality) and not rule.is_clean(full.quality):
+        m = compute_measures(entry.polynomial, cloud.points, unit, delta=delta)
+        poly = entry.polynomial.with_coefficients(entry.polynomial.coefficients, measures=m.to_dict())
+        full = dataclasses.replace(full, x=poly.coefficients, fun=float(m.distance), polynomial=poly, measures=m,
+                                   quality=quality(poly, cloud, ordered_contour=ordered_contour),
+                                   message=f"{full.message}; the polish on every point left the zero set "
+                                           "not clean: the subsample's fit kept")
+    return dataclasses.replace(full, nit=entry.nit + full.nit, nfev=entry.nfev + full.nfev,
+                               seconds=entry.seconds + full.seconds, cleanup=entry.cleanup, reason=entry.reason,
+                               solutions=full.solutions or entry.solutions)
+
+
+def _renormalised(poly: ImplicitPolynomial, norm: Normalization) -> NDArray[np.float64]:
+    """The unit coefficient vector of ``poly`` in the normalised coordinates of ``norm``: the
+    same polynomial (a similarity keeps the degree), solved for at 4·d points of the unit box."""
+    v = np.random.default_rng(0).uniform(-1.5, 1.5, size=(4 * poly.n_coefficients, poly.dim))
+    coefficients = np.linalg.lstsq(basis.monomials(v, poly.exponents), poly(norm.invert(v)), rcond=None)[0]
+    return coefficients / np.linalg.norm(coefficients)
 
 
 def _kept_faces(faces: NDArray[np.int64] | None, keep: NDArray[np.bool_]) -> NDArray[np.int64] | None:

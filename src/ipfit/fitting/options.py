@@ -168,6 +168,14 @@ class SearchOptions:
         (:func:`ipfit.geometry.sampling.spread_subsample`, fixed seed); the start fits' ranking, the
         polish and every reported measure use all points. None: all points (the paper).
         "auto": 1,000 in 2D, 3,000 in 3D (:data:`AUTO`).
+    fit_points : int or None, default 50,000
+        :func:`ipfit.fit_adaptive` on a cloud of more points runs its degree loop (every
+        degree's search, polish, measurement and repair) on this many of them spread evenly
+        (:func:`ipfit.geometry.sampling.spread_subsample`, fixed seed), then polishes the
+        selected degree on every point and measures it there. None: every degree on every
+        point (the paper). 50,000 points sample a shape far more densely than a polynomial of
+        the maximum degree resolves (165 coefficients in 3D), and a degree's full-cloud passes
+        (ranking, measures, quality) were most of a million-point fit's time (docs/peers.md).
     stall_generations : int, None or "auto", default "auto"
         End DE/PSO when the best objective value has not improved by more than
         ``stall_tolerance`` (relative) over this many generations. None: always run
@@ -214,6 +222,7 @@ class SearchOptions:
     dtype: str = "auto"
     n_solutions: int = 5
     search_points: int | str | None = "auto"
+    fit_points: int | None = 50_000
     stall_generations: int | str | None = "auto"
     stall_tolerance: float = 1e-4
     warm_start: bool = False
@@ -260,6 +269,8 @@ class SearchOptions:
         set_("n_solutions", check_int(self.n_solutions, "n_solutions", minimum=1))
         if self.search_points is not None:
             set_("search_points", _int_or_auto(self.search_points, "search_points", 10))
+        if self.fit_points is not None:
+            set_("fit_points", check_int(self.fit_points, "fit_points", minimum=1000))
         if self.stall_generations is not None:
             set_("stall_generations", _int_or_auto(self.stall_generations, "stall_generations", 1))
         set_("stall_tolerance", check_nonnegative(self.stall_tolerance, "stall_tolerance"))
@@ -349,6 +360,7 @@ class MethodOptions:
     dtype: str
     n_solutions: int
     search_points: int | None
+    fit_points: int | None
     stall_generations: int | None
     stall_tolerance: float
     warm_start: bool
@@ -367,4 +379,4 @@ RECOMMENDED = SearchOptions()
 #: The paper's exact search: DE (F = 0.7, CR = 0.9, 500 iterations, population 4·d, N/10 started)
 #: in the raw coefficients, started from the classic and 3L fits, on the paper's distance.
 PAPER = SearchOptions(start_fits=("lstsq", "3l"), search_space="coefficients", far_term_weight=0.0, search_points=None,
-                      stall_generations=None, cleanup_weights=(), dtype="float64")
+                      fit_points=None, stall_generations=None, cleanup_weights=(), dtype="float64")
