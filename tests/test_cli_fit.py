@@ -261,3 +261,21 @@ def test_axis_aligned_lines_and_planes_are_fitted(tmp_path, kind):
     off[-1] = 0.5  # half a unit off the line/plane
     scale = np.abs(poly(pts + off)).max()
     assert np.abs(poly(pts)).max() < 1e-2 * scale  # the data lie on (or within 1% of) the zero set
+
+
+def test_a_big_cloud_says_it_fitted_the_degrees_on_a_subsample(tmp_path):
+    # More than SearchOptions.fit_points (50,000) points: the degrees on 50,000 spread evenly,
+    # the selected one on every point, and the terminal and the result say so.
+    from ipfit.datasets import synthetic
+
+    torus = synthetic.torus(60_000, rng=np.random.default_rng(0))
+    src = tmp_path / "torus.xyz"
+    np.savetxt(src, np.hstack([torus.points, torus.normals]), fmt="%.9g")
+    out = subprocess.run([sys.executable, "-m", "ipfit.cli", "fit", str(src), "-o", str(tmp_path / "t"),
+                          "--no-picture", "--no-zero-set"], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    assert ("degree 4: polishing and measuring on all 60,000 points (the degrees were fitted on 50,000 of them "
+            "spread evenly)") in out.stderr.splitlines()
+    result = json.loads((tmp_path / "t.json").read_text())
+    assert result["selected_degree"] == 4 and result["quality"]["f_score"] > 0.999
+    assert "degrees fitted on 50,000 of the 60,000 points spread evenly" in result["adaptive"]["message"]
