@@ -21,7 +21,9 @@ seconds are the cumulative time of the function that does it, summed over its ca
 
 The profiler slows pure-Python code more than compiled or BLAS code, so the shares are indicative;
 the totals are the profiled run's. ``--million`` adds the bunny's surface sampled to 10⁶ points with
-its face normals (minutes). Every number printed (and written with ``--out``) comes from this run.
+its face normals (minutes); a cloud of more than ``SearchOptions.fit_points`` points has its
+degrees fitted on a subsample of it, and its last row, "degree g on every point", is the
+selected degree polished and measured on every point. Every number printed (and written with ``--out``) comes from this run.
 """
 
 from __future__ import annotations
@@ -80,6 +82,10 @@ class _Profiler:
         elif kind == "degree_done":
             self._close()
             self._label = "after"
+            self._open()
+        elif kind == "every_point":  # a big cloud's selected degree, on every point (fit_points)
+            self._close()
+            self._label = f"degree {event['degree']} on every point"
             self._open()
 
     def finish(self) -> None:
