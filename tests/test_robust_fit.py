@@ -198,3 +198,20 @@ def test_bad_outlier_flags_exit_2_with_one_line(tmp_path, capsys, args, words):
     err = capsys.readouterr().err
     assert code == 2 and words in err and "Traceback" not in err
     assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.slow
+def test_a_big_bare_scan_with_strays_is_scored_and_fitted_on_samples_of_it(seed):
+    # 165,000 points: the outlier score's rounds on a random 131,072 of them, the degrees on
+    # 50,000 spread evenly, the selected degree on every inlier; the strays are found and the
+    # torus (R = 1, r = 0.4) is recovered.
+    rng = np.random.default_rng(seed)
+    cloud, planted = with_outliers(synthetic.torus(150_000, rng=rng).points, 0.1, rng)
+    result = ipfit.fit_adaptive(cloud, rng=seed)
+    found = ~np.asarray(result.outliers.inliers)
+    on_it = np.abs(np.hypot(np.hypot(*cloud[:, :2].T) - 1.0, cloud[:, 2]) - 0.4) < 0.05
+    assert found[planted & ~on_it].mean() >= 0.95 and found[~planted].mean() <= 0.02
+    assert result.selected_degree == 4
+    assert "degrees fitted on 50,000 of the" in result.message
+    assert result.at_degree(4).quality.f_score > 0.99
+    assert np.max(np.abs(result.polynomial.residuals(cloud[~planted]))) < 0.02
