@@ -254,3 +254,12 @@ def test_a_polynomial_moved_to_another_normalisation_is_the_same_polynomial(rng)
     scale = np.dot(a, b) / np.dot(b, b)  # a polynomial is its zero set up to a factor
     assert np.max(np.abs(a - scale * b)) < 1e-8 * np.max(np.abs(a))
     assert np.linalg.norm(moved.coefficients) == pytest.approx(1.0)
+
+
+def test_a_mesh_is_fitted_on_every_vertex_whatever_fit_points():
+    # Its faces are the surface every degree is measured against (and its topology): no subsample.
+    duck = ipfit.load("duck")
+    assert len(duck) > 1000 and duck.faces is not None
+    res = fit_adaptive(duck, rng=0, options=ipfit.RECOMMENDED.replace(fit_points=1000), max_degree=4)
+    assert "spread evenly" not in res.message
+    assert all(d.quality.reference == "faces" for d in res.degrees)

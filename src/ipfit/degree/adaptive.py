@@ -505,9 +505,11 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
 
 def _working_cloud(cloud: Cloud, unit, options: SearchOptions | None):
     """The cloud the degree loop fits, and its normals as given: ``cloud`` itself, or an even
-    subsample of ``options.fit_points`` of its points (fixed seed) when it has more."""
+    subsample of ``options.fit_points`` of its points (fixed seed) when it has more. A mesh is
+    fitted on every vertex: its faces describe the surface every degree is measured against
+    (and its topology, known with confidence), which a subsample of its vertices would lose."""
     most = None if options is None else options.fit_points
-    if most is None or len(cloud) <= most:
+    if most is None or len(cloud) <= most or cloud.faces is not None:
         return cloud, unit
     pick = spread_subsample(cloud, most)
     return (Cloud._checked(cloud.points[pick], as_normals(unit[pick], cloud.points[pick]), None,
