@@ -274,7 +274,10 @@ def score_outliers(points: ArrayLike, *, outliers="auto", k: int | None = None,
     out) is compared with the noise scale, estimated from the same offsets; density picks the
     first samples. See the module notes for the steps and :class:`OutlierScore` for the result.
     Nothing but the points is used: no normals, no order. The result does not depend on the
-    points' order, position, orientation or units.
+    points' order, position, orientation or units. Above 131,072 distinct points the reference
+    surfaces are found on a random 131,072 of them (fixed seed) and every point is scored once
+    against them: the result still does not depend on the order, but which points that sample
+    holds, and so a score near the threshold, can change with the position, orientation or units.
 
     Parameters
     ----------
