@@ -263,3 +263,17 @@ def test_a_mesh_is_fitted_on_every_vertex_whatever_fit_points():
     res = fit_adaptive(duck, rng=0, options=ipfit.RECOMMENDED.replace(fit_points=1000), max_degree=4)
     assert "spread evenly" not in res.message
     assert all(d.quality.reference == "faces" for d in res.degrees)
+
+
+def test_an_interrupt_on_every_point_keeps_the_subsample_fit(seed):
+    shape = synthetic.torus(3000, rng=np.random.default_rng(seed))
+
+    def interrupting(event):
+        if event["event"] == "every_point":
+            raise KeyboardInterrupt
+
+    res = fit_adaptive(shape.points, shape.normals, rng=seed, options=ipfit.RECOMMENDED.replace(fit_points=1000),
+                       progress=interrupting)
+    assert res.reason == "interrupted" and not res.success
+    assert "interrupted while polishing degree 4 on every point" in res.message
+    assert res.selected_degree == 4 and res.at_degree(4).quality.f_score > 0.99  # measured on the subsample

@@ -486,12 +486,17 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
     results = [dataclasses.replace(r, reason=rule.reason(results, i, index, message, epsilon))
                for i, r in enumerate(results)]
     if work is not cloud and reason != "interrupted":
-        if progress is not None:
-            progress({"event": "every_point", "degree": results[index].degree, "n_points": len(cloud),
-                      "fit_points": len(work)})
-        results[index] = _on_every_point(fitter, cloud, unit, results[index], delta, measured, ordered_contour, rule)
-        message = (f"{message}; degrees fitted on {len(work):,} of the {len(cloud):,} points spread evenly, "
-                   f"degree {results[index].degree} polished and measured on every point")
+        sampled = f"degrees fitted on {len(work):,} of the {len(cloud):,} points spread evenly"
+        try:
+            if progress is not None:
+                progress({"event": "every_point", "degree": results[index].degree, "n_points": len(cloud),
+                          "fit_points": len(work)})
+            results[index] = _on_every_point(fitter, cloud, unit, results[index], delta, measured, ordered_contour,
+                                             rule)
+            message = f"{message}; {sampled}, degree {results[index].degree} polished and measured on every point"
+        except KeyboardInterrupt:  # the subsample's fit stands, as a degree finished in the loop does
+            reason = "interrupted"
+            message = f"{message}; {sampled}; interrupted while polishing degree {results[index].degree} on every point"
     chosen = results[index]
     name = method if isinstance(method, str) else getattr(method, "__name__", "custom")
     success = reason != "interrupted" and rule.success(results, index)
