@@ -47,7 +47,7 @@ from ..fitting.options import (
     REFINE_METHODS,
     SearchOptions,
 )
-from ..fitting.refine import FULL_POLISH_ITERATIONS, FULL_POLISH_MIN, FULL_POLISH_POINTS, refine
+from ..fitting.refine import full_polish_budget, refine
 from ..geometry.sampling import spread_subsample
 from ..normals import estimate_normals
 from ..polynomial import ImplicitPolynomial, Normalization
@@ -529,8 +529,8 @@ def _on_every_point(fitter: _Fitter, cloud: Cloud, unit, entry: DegreeResult, de
     measured on every point."""
     # A few L-BFGS iterations on every point, as many as refine gives a subsampled polish there:
     # the start is already polished on the subsample, whose optimum is close to the full one's.
-    budget = max(FULL_POLISH_MIN, int(FULL_POLISH_ITERATIONS * min(1.0, FULL_POLISH_POINTS / len(cloud))))
-    options = cast(SearchOptions, fitter.options).replace(start_fits=(), n_solutions=1, polish_iterations=budget)
+    options = cast(SearchOptions, fitter.options).replace(start_fits=(), n_solutions=1,
+                                                          polish_iterations=full_polish_budget(len(cloud)))
     start = _renormalised(entry.polynomial, Normalization.from_points(cloud.points))
     full = _fit_degree(fitter, cloud, unit, entry.degree, delta, measured, ordered_contour, options=options,
                        extra_starts=[start], method="polish")

@@ -369,12 +369,17 @@ def _polish(obj64, sub64, pool, pool_fun, has_starts: bool, r, settings: MethodO
     if sub64 is None:
         return xs, np.array([res.fun for res in polished]), polished
     funs = obj64(xs)
-    # A full-cloud iteration costs N/n subsample ones (and rebuilds its design blocks beyond a few
-    # hundred thousand points): the budget shrinks with N, so a million points get a few steps.
-    budget = max(FULL_POLISH_MIN, int(FULL_POLISH_ITERATIONS * min(1.0, FULL_POLISH_POINTS / obj64.n_points)))
     final = lbfgs(obj64.value_and_grad, xs[int(np.argmin(funs))],
-                  maxiter=min(settings.polish_iterations, budget), precondition=r, callback=staged)
+                  maxiter=min(settings.polish_iterations, full_polish_budget(obj64.n_points)), precondition=r,
+                  callback=staged)
     return np.vstack([xs, final.x]), np.append(funs, final.fun), [*polished, final]
+
+
+def full_polish_budget(n_points: int) -> int:
+    """L-BFGS iterations on all of ``n_points`` points after a polish on a subsample. A full-cloud
+    iteration costs N/n subsample ones (and rebuilds its design blocks beyond a few hundred
+    thousand points): the budget shrinks with N, so a million points get a few steps."""
+    return max(FULL_POLISH_MIN, int(FULL_POLISH_ITERATIONS * min(1.0, FULL_POLISH_POINTS / n_points)))
 
 
 def _best_distinct(pool, pool_fun, n_solutions: int) -> list[int]:
