@@ -14,7 +14,7 @@ from ipfit import fit_adaptive
 from ipfit.datasets import load_dataset, synthetic
 from ipfit.exceptions import InvalidInputError
 from ipfit.zeroset.quality import Quality
-from ipfit.degree.rules import (CAPTURE, GAIN, GEOMETRIC, PAPER, PATIENCE, RULES, TOLERANCE, DegreeRule, capture_stop, gains,
+from ipfit.degree.rules import (CAPTURE, CAPTURE_USUAL_DEGREE, EXTEND_BELOW, GAIN, GEOMETRIC, PAPER, PATIENCE, RULES, TOLERANCE, DegreeRule, capture_stop, gains,
                          get_rule, is_clean, select_degree_capture)
 
 
@@ -25,10 +25,11 @@ def _quality(f=0.9, recall=None, d2z=0.01, spurious=(), n_open=0, tau=0.05, n_co
                    spurious=tuple(spurious), n_open=n_open)
 
 
-def _path(*rows):
+def _path(*rows, dim=2):
     """Per-degree entries (degree, smoothness, paper's distance, F-score) with clean zero sets
     and a fixed recall."""
-    return [SimpleNamespace(degree=g, smoothness=s, distance=d, quality=_quality(f, recall=0.9, d2z=d))
+    return [SimpleNamespace(degree=g, smoothness=s, distance=d, quality=_quality(f, recall=0.9, d2z=d),
+                            polynomial=SimpleNamespace(dim=dim))
             for g, s, d, f in rows]
 
 
@@ -70,6 +71,30 @@ def test_the_loop_looks_ahead_before_stopping():
     # a gain in between resets the count
     mixed = _path((2, 0.9, 0.1, 0.80), (4, 0.9, 0.1, 0.80), (6, 0.9, 0.1, 0.95))
     assert capture_stop(mixed, 0.01) is None
+
+
+def test_3d_degrees_beyond_the_usual_one_are_tried_only_while_the_f_score_rises():
+    usual = CAPTURE_USUAL_DEGREE[3]
+    rising = [(2, 0.90, 0.10, 0.60), (4, 0.92, 0.08, 0.70), (6, 0.94, 0.06, 0.80)]
+    # below the usual degree a degree without an F-score gain is not the end (the look-ahead)
+    assert capture_stop(_path(*rising[:2], (6, 0.95, 0.05, 0.70), dim=3), 0.01) is None
+    # at and beyond it, only an F-score gain of more than GAIN over the best so far goes on
+    assert capture_stop(_path(*rising, (usual, 0.96, 0.04, 0.80 + 2 * GAIN), dim=3), 0.01) is None
+    assert capture_stop(_path(*rising, (usual, 0.99, 0.01, 0.80 + GAIN / 2), dim=3), 0.01) == "no_f_gain"
+    path = _path(*rising, (usual, 0.96, 0.04, 0.85), (usual + 2, 0.97, 0.03, 0.90), dim=3)
+    assert capture_stop(path, 0.01) is None
+    path[-1].quality = _quality(0.95, spurious=[{"size": 1.0, "share": 0.1, "center": [0, 0, 0],
+                                                 "distance": 1.0}])  # a higher F, but not clean
+    assert capture_stop(path, 0.01) == "no_f_gain"
+    path[3].cleanup = ()
+    assert CAPTURE.explain(path, 3, "no_f_gain", 0.01).endswith(
+        f"in 3D a degree above {usual} is tried only after one that raised the best clean F-score by more than "
+        f"{GAIN:g} and left it below {EXTEND_BELOW:g}, and degree {usual + 2} did not")
+    # a gain up to EXTEND_BELOW or beyond: fitted well enough to stop there
+    assert capture_stop(_path(*rising, (usual, 0.99, 0.01, EXTEND_BELOW), dim=3), 0.01) == "no_f_gain"
+    # 2D has no such limit: the same path goes on
+    assert capture_stop(_path(*rising, (usual, 0.99, 0.01, 0.80), dim=2), 0.01) is None
+    assert CAPTURE.max_degree(3) > usual
 
 
 def test_the_loop_stops_once_the_shape_is_captured():
@@ -299,7 +324,7 @@ def test_the_registry_holds_the_rules_by_name():
     assert all(RULES[name].name == name and isinstance(RULES[name], DegreeRule) for name in RULES)
     assert (RULES["capture"], RULES["geometric"], RULES["paper"]) == (CAPTURE, GEOMETRIC, PAPER)
     assert get_rule("Paper") is PAPER and get_rule(CAPTURE) is CAPTURE   # names ignore case; objects pass
-    assert (CAPTURE.max_degree(2), CAPTURE.max_degree(3)) == (14, 8)
+    assert (CAPTURE.max_degree(2), CAPTURE.max_degree(3)) == (14, 12)
     assert (GEOMETRIC.max_degree(2), PAPER.max_degree(2), PAPER.max_degree(3)) == (10, 10, 8)
     # the command line offers exactly the registry's names
     import argparse

@@ -147,8 +147,8 @@ class AdaptiveResult(Result):
     polynomial : the fit at the selected degree (measures filled in).
     selected_degree : int
     degrees : one :class:`DegreeResult` per degree tried, in order.
-    reason : why the loop stopped or the degree was chosen: 'captured' or 'flattened' (capture
-        rule), 'criterion' (Algorithm 1), 'geometric', 'max_degree', 'fixed' or 'interrupted'.
+    reason : why the loop stopped or the degree was chosen: 'captured', 'flattened' or
+        'no_f_gain' (capture rule), 'criterion' (Algorithm 1), 'geometric', 'max_degree', 'fixed' or 'interrupted'.
     rule : the degree rule's name.
     epsilon, delta, method, seconds
     options : the search settings used by a refinement method (None for a linear fit).
@@ -301,8 +301,9 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
     options : :class:`~ipfit.SearchOptions` of the refinement methods (default
         :data:`ipfit.RECOMMENDED`; :data:`ipfit.PAPER` is the paper's); an error with a linear
         method or a callable, which have no search.
-    max_degree : G, the last degree tried. Default: with the capture rule 14 in 2D and 8 in 3D,
-        lowered to the highest degree with at least 2 points per coefficient; with the other
+    max_degree : G, the last degree tried. Default: with the capture rule 14 in 2D and 12 in 3D
+        (beyond 8 only while each degree raises the F-score), lowered to the highest degree with
+        at least 2 points per coefficient; with the other
         rules 10 in 2D and 8 in 3D (the paper).
     min_degree : the first degree tried (default 2).
     epsilon : ε, the smallest smoothness gain that justifies a higher degree.

@@ -7,7 +7,10 @@
   mean data-to-zero-set distance (a relative drop of more than :data:`DISTANCE_GAIN`);
 * **stop** when a clean degree reaches F ≥ 1 − :data:`TOLERANCE` (captured: no higher degree
   could then be selected, see below), or after :data:`PATIENCE` degrees in a row without a
-  substantial gain (look-ahead), or at the maximum degree;
+  substantial gain (look-ahead), or at the maximum degree; beyond :data:`CAPTURE_USUAL_DEGREE`
+  (8 in 3D) a degree is fitted only when the one before it raised the best clean F-score by
+  more than :data:`GAIN` and left it below :data:`EXTEND_BELOW` (thin parts need degrees 10 and
+  12, which cost two and four times degree 8 and rarely pay elsewhere: docs/quality-3d.md);
 * **select** the lowest clean degree whose F-score is within :data:`TOLERANCE` of the best
   clean F-score, so simple shapes keep low degrees and a degree that bulges (lower precision,
   hence lower F) is not preferred over one that does not. With no clean degree, the highest
@@ -60,13 +63,22 @@ __all__ = ["RULES", "DegreeRule", "CaptureRule", "GeometricRule", "PaperRule", "
            "PAPER", "TOPOLOGY",
            "get_rule", "select_degree", "select_degree_geometric", "select_degree_capture", "gains", "capture_stop",
            "is_clean", "describe_unclean", "topology_differs", "GAIN", "DISTANCE_GAIN", "PATIENCE", "TOLERANCE",
-           "is_speck", "SPECK_REACH", "DEFAULT_MAX_DEGREE", "CAPTURE_MAX_DEGREE", "PRECISION_TARGET", "REPAIR_RECALL"]
+           "is_speck", "SPECK_REACH", "DEFAULT_MAX_DEGREE", "CAPTURE_MAX_DEGREE",
+           "CAPTURE_USUAL_DEGREE", "EXTEND_BELOW", "PRECISION_TARGET", "REPAIR_RECALL"]
 
 #: Maximum degree tried by default, per dimension (the paper: degrees 2 to 10 are the norm).
 DEFAULT_MAX_DEGREE = {2: 10, 3: 8}
 #: ... and with the capture rule, which stops by itself once the shape is captured and so can
-#: afford the higher degrees that thin or detailed contours need (docs/degree-rule.md).
-CAPTURE_MAX_DEGREE = {2: 14, 3: 8}
+#: afford the higher degrees that thin or detailed contours need (docs/degree-rule.md), and
+#: that thin parts of 3D shapes need (docs/quality-3d.md), where the data have
+#: :attr:`CaptureRule.points_per_coefficient` points per coefficient.
+CAPTURE_MAX_DEGREE = {2: 14, 3: 12}
+#: The capture rule's degrees above this one (per dimension; none in 2D) are fitted only while
+#: each degree gains F-score and the best is still below :data:`EXTEND_BELOW` (see :func:`capture_stop`).
+CAPTURE_USUAL_DEGREE = {3: 8}
+#: See :data:`CAPTURE_USUAL_DEGREE`: a shape fitted this well gains too little from a higher degree to
+#: pay for it.
+EXTEND_BELOW = 0.95
 
 #: capture rule: the smallest F-score or recall gain (over the best so far) worth another degree.
 GAIN = 0.01
@@ -207,12 +219,21 @@ def gains(entries, i: int, epsilon: float) -> list[str]:
 def capture_stop(entries, epsilon: float) -> str | None:
     """Whether the capture rule's loop stops after the last of ``entries``: 'captured' (a clean
     degree has F ≥ 1 − TOLERANCE, so no higher degree could be selected), 'flattened'
-    (:data:`PATIENCE` degrees in a row without a substantial gain) or None (go on)."""
-    if any(f is not None and f >= 1 - TOLERANCE for f in map(_clean_f, entries)):
+    (:data:`PATIENCE` degrees in a row without a substantial gain), 'no_f_gain' (the last degree
+    is :data:`CAPTURE_USUAL_DEGREE` or above and did not raise the best clean F-score by more
+    than :data:`GAIN`, or raised it to :data:`EXTEND_BELOW` or more) or None (go on)."""
+    clean_f = list(map(_clean_f, entries))
+    if any(f is not None and f >= 1 - TOLERANCE for f in clean_f):
         return "captured"
     if len(entries) > PATIENCE and not any(gains(entries, i, epsilon)
                                            for i in range(len(entries) - PATIENCE, len(entries))):
         return "flattened"
+    last = entries[-1]
+    usual = CAPTURE_USUAL_DEGREE.get(last.polynomial.dim)
+    if usual is not None and last.degree >= usual:
+        before = max((f for f in clean_f[:-1] if f is not None), default=0.0)
+        if clean_f[-1] is None or clean_f[-1] - before <= GAIN or clean_f[-1] >= EXTEND_BELOW:
+            return "no_f_gain"
     return None
 
 
@@ -500,10 +521,13 @@ class CaptureRule(DegreeRule):
 
     def explain(self, results, index, reason, epsilon):
         chosen = results[index]
-        stop = {"captured": f"the shape was captured (F-score >= {1 - TOLERANCE:g} on a clean degree)",
-                "flattened": f"{PATIENCE} degrees in a row gained nothing substantial",
-                "max_degree": "the last degree was reached",
-                "interrupted": "the run was interrupted"}[reason]
+        if reason == "no_f_gain":
+            stop = self._no_gain(results[-1])
+        else:
+            stop = {"captured": f"the shape was captured (F-score >= {1 - TOLERANCE:g} on a clean degree)",
+                    "flattened": f"{PATIENCE} degrees in a row gained nothing substantial",
+                    "max_degree": "the last degree was reached",
+                    "interrupted": "the run was interrupted"}[reason]
         if not self.is_clean(chosen.quality):
             return (f"degree {chosen.degree}: no degree tried is clean, so the lowest degree within {TOLERANCE:g} "
                     f"of the best F-score was taken ({chosen.quality.f_score:.3f}); the loop stopped: {stop}")
@@ -516,6 +540,13 @@ class CaptureRule(DegreeRule):
         which = "clean degree with the data's topology" if lower_wrong and right else "clean degree"
         return (f"degree {chosen.degree}{repaired}: the lowest {which} within {TOLERANCE:g} of the best clean "
                 f"F-score ({chosen.quality.f_score:.3f}); the loop stopped: {stop}")
+
+    @staticmethod
+    def _no_gain(last) -> str:
+        dim = last.polynomial.dim
+        return (f"in {dim}D a degree above {CAPTURE_USUAL_DEGREE.get(dim)} is tried only after one that raised the "
+                f"best clean F-score by more than {GAIN:g} and left it below {EXTEND_BELOW:g}, and degree "
+                f"{last.degree} did not")
 
     def reason(self, results, i, index, message, epsilon):
         entry, chosen = results[i], results[index]

@@ -41,6 +41,9 @@ REASONS = {
                 "lowest clean degree within that tolerance of the best F-score was taken.",
     "flattened": "several degrees in a row gained nothing substantial (smoothness, F-score, recall, "
                  "distances); the lowest clean degree within the tolerance of the best F-score was taken.",
+    "no_f_gain": "a degree above the usual highest (8 in 3D) is tried only after one that raised the best clean "
+                 "F-score substantially and left it below 0.95, and the last degree did not; the lowest clean "
+                 "degree within the tolerance of the best F-score was taken.",
     "interrupted": "the run was interrupted; the rule was applied to the degrees already finished.",
     "incomplete": "the run ended before the rule fired; its last degree was taken.",
 }
