@@ -4,7 +4,8 @@ Usage::
 
     python experiments/robust.py [--shapes DIR|FILE|NAME|bundled ...] [--every K] [--limit N]
                                  [--pipelines today sor robust] [--conditions clean noise-1 ...]
-                                 [--jobs 2] [--seed 0] [--out docs/robust.md] [--resume] [--page-only]
+                                 [--jobs 2] [--seed 0] [--out docs/robust.md] [--resume [--redo]]
+                                 [--page-only]
 
 Every shape (a 2D contour CSV or a 3D mesh in a folder of ``--shapes``, a file, a bundled
 dataset's name, or ``bundled`` for the six bundled datasets) is turned into a real-cloud version
@@ -25,7 +26,8 @@ degree; with the fit's seconds and the share of points each pipeline treated as 
 the planted share. Worker processes (``--jobs``) with one thread each run the cases; each first
 fits a small circle and sphere, so that no timed fit pays for numba's compilation. The rows go to
 ``--out``'s ``.json`` twin as they finish (``--resume`` keeps those and runs the rest);
-``--page-only`` rewrites the Markdown from that JSON alone.
+``--resume --redo`` fits the command's shapes again and replaces their stored rows (after a change
+that affects only them); ``--page-only`` rewrites the Markdown from that JSON alone.
 
 The default run (140 + 12 + 6 shapes, 6 conditions, 3 pipelines: about 2,800 fits of 5-40 s)
 takes hours on 2 cores; ``--every 5`` takes a fifth of each folder, for a quicker look.
@@ -523,6 +525,8 @@ def main(argv=None) -> int:
     parser.add_argument("--out", default="docs/robust.md")
     parser.add_argument("--resume", action="store_true", help="keep the rows of the JSON and run the missing cases")
     parser.add_argument("--page-only", action="store_true", help="rewrite the Markdown from the JSON alone")
+    parser.add_argument("--redo", action="store_true",
+                        help="with --resume: fit this command's shapes again, replacing their stored rows")
     args = parser.parse_args(argv)
     out = Path(args.out)
     json_path = out.with_suffix(".json")
@@ -560,6 +564,9 @@ def main(argv=None) -> int:
     if args.resume and json_path.exists():
         stored = json.loads(json_path.read_text(encoding="utf-8"))
         done, before = stored["rows"], stored["meta"].get("wall_seconds", 0.0)
+        if args.redo:  # the page's command line says so (--redo)
+            again = {name for name, _ in specs}
+            done = [r for r in done if r["shape"] not in again]
         # the page names every run its rows come from: the earlier command(s), then this one
         if stored["meta"].get("command") and stored["meta"]["command"] != meta["command"]:
             meta["command"] = f"{stored['meta']['command']}` then `{meta['command']} --resume"
