@@ -437,6 +437,17 @@ def test_a_degree_of_the_data_topology_within_the_tolerance_is_preferred():
     assert "with the data's topology" in CAPTURE.explain(path, 2, "max_degree", 0.01)
 
 
+def test_only_a_known_topology_is_said_to_be_repaired():
+    from ipfit.zeroset.topology import Topology
+
+    entry = _topo_entry(8, 0.95, 1)
+    entry.cleanup = ({"topology_matches": False},)       # a repair round that met another topology
+    assert "(repaired to the data's topology)" in CAPTURE.explain([entry], 0, "max_degree", 0.01)
+    estimate = Topology(3, 3, source="points", confidence="medium")   # a bare cloud's estimate
+    entry.quality = dataclasses.replace(entry.quality, data_topology=estimate, topology=Topology(3, 7))
+    assert "repaired" not in CAPTURE.explain([entry], 0, "max_degree", 0.01)
+
+
 def test_a_repaired_degree_takes_its_place_only_within_the_tolerance():
     path = [_topo_entry(6, 0.90, 1), _topo_entry(8, 0.995, 3)]
     good, poor = _topo_entry(8, 0.986, 1), _topo_entry(8, 0.984, 1)

@@ -534,8 +534,10 @@ class CaptureRule(DegreeRule):
         right = not topology_differs(chosen.quality)
         lower_wrong = any(self.is_clean(r.quality) and topology_differs(r.quality) and r.degree < chosen.degree
                           and r.quality.f_score >= chosen.quality.f_score - TOLERANCE for r in results)
-        # its own fit had another topology, and a repair round gave it the data's
-        repaired = " (repaired to the data's topology)" if right and self.prefers_topology and any(
+        # its own fit had another topology, and a repair round gave it the data's (known: an
+        # estimate's mismatch is only reported, never repaired)
+        known = chosen.quality.data_topology is not None and chosen.quality.data_topology.known
+        repaired = " (repaired to the data's topology)" if right and known and self.prefers_topology and any(
             a.get("topology_matches") is False for a in chosen.cleanup) else ""
         which = "clean degree with the data's topology" if lower_wrong and right else "clean degree"
         return (f"degree {chosen.degree}{repaired}: the lowest {which} within {TOLERANCE:g} of the best clean "
