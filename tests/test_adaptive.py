@@ -321,3 +321,21 @@ def test_3d_degrees_above_8_need_two_points_per_coefficient():
     fit_adaptive(sphere.points, sphere.normals,
                  method=_ellipsoids({2: 1.6, 4: 1.35, 6: 1.2, 8: 1.15, 10: 1.1, 12: 1.07}, fitted))
     assert fitted == [2, 4, 6, 8, 10]
+
+
+def test_the_loop_gives_a_degree_its_missing_surface_round_when_the_rule_asks():
+    from ipfit.degree.rules import CaptureRule
+
+    class Filling(CaptureRule):
+        name = "filling"
+
+        def fills_missing(self, entry, best_f=0.0):
+            return True
+
+    big, small = synthetic.sphere(300, rng=0), synthetic.sphere(80, radius=0.3, center=(1.5, 0, 0), rng=1)
+    pts, normals = np.vstack([big.points, small.points]), np.vstack([big.normals, small.normals])
+    asked = fit_adaptive(pts, normals, max_degree=2, rule=Filling(), rng=0)
+    assert [a["target"] for a in asked.degrees[0].cleanup][-1:] == ["missing surface"]
+    # the round is kept only when it is clean and raises the F-score
+    assert asked.degrees[0].quality.f_score >= asked.degrees[0].cleanup[-1]["f_score"] or \
+        not asked.degrees[0].cleanup[-1]["clean"]

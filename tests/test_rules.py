@@ -14,7 +14,8 @@ from ipfit import fit_adaptive
 from ipfit.datasets import load_dataset, synthetic
 from ipfit.exceptions import InvalidInputError
 from ipfit.zeroset.quality import Quality
-from ipfit.degree.rules import (CAPTURE, CAPTURE_USUAL_DEGREE, EXTEND_BELOW, GAIN, GEOMETRIC, PAPER, PATIENCE, RULES, TOLERANCE, DegreeRule, capture_stop, gains,
+from ipfit.degree.rules import (CAPTURE, CAPTURE_USUAL_DEGREE, EXTEND_BELOW, GAIN, GEOMETRIC, MISSING_RECALL, PAPER,
+                                PATIENCE, RULES, TOLERANCE, DegreeRule, capture_stop, gains,
                          get_rule, is_clean, select_degree_capture)
 
 
@@ -465,3 +466,97 @@ def test_a_choice_of_the_data_topology_is_left_alone():
     assert chosen is path[0] and asked == []          # no repair is even tried
     # a rule that does not prefer the topology never asks for one
     assert _settle(_blind(), [path[1], _topo_entry(10, 0.99, 1)])[1] == []
+
+
+# --- the surface a thin part's zero set misses (issue 32: degree.repair.fill_missing) ---------------
+
+def test_the_capture_rule_fills_missing_surface_of_a_precise_3d_degree_only():
+    def entry(f, precision, recall, dim=3, spurious=()):
+        q = dataclasses.replace(_quality(f, recall=recall, spurious=spurious), precision=precision)
+        return SimpleNamespace(quality=q, polynomial=SimpleNamespace(dim=dim))
+
+    assert CAPTURE.fills_missing(entry(0.88, 0.997, 0.79))                 # on the data, part of it missed
+    assert not CAPTURE.fills_missing(entry(0.88, 0.997, 0.79, dim=2))      # 2D: not measured, not tried
+    assert not CAPTURE.fills_missing(entry(0.86, 0.88, 0.83))              # bulges too: the repair's job
+    assert not CAPTURE.fills_missing(entry(0.98, 0.99, MISSING_RECALL))    # nothing much missed
+    assert not CAPTURE.fills_missing(entry(0.88, 0.997, 0.79), best_f=0.88 + 2 * TOLERANCE)  # out of the race
+    loop = {"size": 1.0, "share": 0.1, "center": [0, 0, 0], "distance": 1.0}
+    assert not CAPTURE.fills_missing(entry(0.88, 0.997, 0.79, spurious=[loop]))              # not clean
+    assert not any(rule.fills_missing(entry(0.88, 0.997, 0.79)) for rule in (GEOMETRIC, PAPER))
+
+
+def _sphere_entry(cloud, poly, degree=4):
+    from ipfit.degree.adaptive import DegreeResult
+    from ipfit.fitting.objective import measures
+    from ipfit.zeroset.quality import quality
+
+    m = measures(poly, cloud.points, cloud.unit_normals)
+    return DegreeResult(x=poly.coefficients, fun=m.distance, nit=0, nfev=1, success=True, message="", degree=degree,
+                        polynomial=poly, measures=m, seconds=0.5, quality=quality(poly, cloud))
+
+
+@pytest.mark.parametrize("weighted", [False, True])
+def test_missing_surface_is_held_on_both_sides_of_the_points_missed(weighted):
+    # The data: a unit sphere and a small one beside it; the degree's zero set is the unit sphere
+    # only, so the small sphere's points are the ones missed. The places are on both sides of
+    # those points, a quarter of tau out along their normals, at the last clean-up weight; a
+    # weighted cloud's low-weight points get none.
+    from ipfit.degree.repair import MISSING_OFFSET, fill_missing
+    from ipfit.fitting.options import RECOMMENDED
+
+    big, small = synthetic.sphere(600, rng=0), synthetic.sphere(120, radius=0.3, center=(1.5, 0, 0), rng=1)
+    pts, normals = np.vstack([big.points, small.points]), np.vstack([big.normals, small.normals])
+    weights = np.r_[np.ones(600), np.where(np.arange(120) < 60, 1.0, 0.2)] if weighted else None
+    cloud = ipfit.Cloud(pts, normals, weights=weights)
+    unit_sphere = synthetic.from_terms(3, 4, {(2, 0, 0): 1.0, (0, 2, 0): 1.0, (0, 0, 2): 1.0, (0, 0, 0): -1.0})
+    entry = _sphere_entry(cloud, unit_sphere)
+    tau = entry.quality.tau
+    assert entry.quality.precision > 0.95 and entry.quality.recall < 0.9          # the small sphere missed
+    both = synthetic.from_terms(3, 4, {(4, 0, 0): 1.0})                            # any other polynomial
+    calls = []
+
+    def refit(opts, start, keep_clear):
+        calls.append((opts, start, keep_clear))
+        return outcome
+
+    for outcome, kept in ((_sphere_entry(cloud, unit_sphere), False), (_sphere_entry(cloud, both), None)):
+        calls.clear()
+        out = fill_missing(entry, refit, RECOMMENDED, cloud, False, CAPTURE)
+        (opts, start, places), = calls
+        assert opts.far_term_weight == RECOMMENDED.cleanup_weights[-1] and opts.start_fits == ()
+        np.testing.assert_array_equal(start, entry.x)
+        half = len(places) // 2
+        offset = np.linalg.norm(places[:half] - places[half:], axis=1)
+        np.testing.assert_allclose(offset, 2 * MISSING_OFFSET * tau)               # both sides, τ/4 out each
+        middle = (places[:half] + places[half:]) / 2
+        seeds = np.flatnonzero(np.all(np.isclose(middle[:, None], small.points[None]), axis=2).any(axis=0))
+        assert len(seeds) == half                                                  # every one a small-sphere point
+        if weighted:
+            assert seeds.max() < 60                                                # confident points only
+        assert [a["target"] for a in out.cleanup] == ["missing surface"]
+        assert out.seconds == entry.seconds + outcome.seconds
+        if kept is False:                                                          # no higher F-score: not kept
+            assert out.polynomial is entry.polynomial
+    # a higher F-score that is not clean, or that loses the data's topology, is not kept either
+    higher = _sphere_entry(cloud, unit_sphere)
+    higher = dataclasses.replace(higher, quality=dataclasses.replace(higher.quality, f_score=0.99))
+    outcome = higher
+    assert fill_missing(entry, refit, RECOMMENDED, cloud, False, CAPTURE).quality.f_score == 0.99
+    loop = {"size": 1.0, "share": 0.1, "center": [5.0, 0, 0], "distance": 3.0}
+    outcome = dataclasses.replace(higher, quality=dataclasses.replace(higher.quality, spurious=(loop,), n_spurious=1))
+    assert fill_missing(entry, refit, RECOMMENDED, cloud, False, CAPTURE).polynomial is entry.polynomial
+
+
+def test_a_degree_fitted_whole_gets_no_missing_surface_round():
+    # every point on the zero set: nothing to place, the degree comes back as it was
+    from ipfit.degree.repair import fill_missing
+    from ipfit.fitting.options import RECOMMENDED
+
+    sphere = synthetic.sphere(400, rng=0)
+    cloud = ipfit.Cloud(sphere.points, sphere.normals)
+    entry = _sphere_entry(cloud, synthetic.from_terms(3, 2, {(2, 0, 0): 1.0, (0, 2, 0): 1.0, (0, 0, 2): 1.0,
+                                                             (0, 0, 0): -1.0}), degree=2)
+
+    def refit(*args):
+        raise AssertionError("no refit without missed points")
+    assert fill_missing(entry, refit, RECOMMENDED, cloud, False, CAPTURE) is entry

@@ -54,7 +54,7 @@ from ..polynomial import ImplicitPolynomial, Normalization
 from ..robust import OutlierScore, check_outliers, score_outliers
 from ..zeroset.quality import Quality, looks_like_contour, quality
 from ..zeroset.topology import Topology, describe_mismatch
-from .repair import repair
+from .repair import fill_missing, repair
 from .rules import (
     RULES,
     TOLERANCE,
@@ -446,6 +446,8 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
 
             if measured and fitter.options is not None and not rule.is_done(entry, best_f):
                 entry = repair(entry, refit, fitter.options, work, ordered_contour, rule, best_f)
+            if measured and fitter.options is not None and rule.fills_missing(entry, best_f):
+                entry = fill_missing(entry, refit, fitter.options, work, ordered_contour, rule)
             unrepaired.append((before_repair, refit, fitter.previous))
         except KeyboardInterrupt:
             if not results:

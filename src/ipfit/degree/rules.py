@@ -64,7 +64,8 @@ __all__ = ["RULES", "DegreeRule", "CaptureRule", "GeometricRule", "PaperRule", "
            "get_rule", "select_degree", "select_degree_geometric", "select_degree_capture", "gains", "capture_stop",
            "is_clean", "describe_unclean", "topology_differs", "GAIN", "DISTANCE_GAIN", "PATIENCE", "TOLERANCE",
            "is_speck", "SPECK_REACH", "DEFAULT_MAX_DEGREE", "CAPTURE_MAX_DEGREE",
-           "CAPTURE_USUAL_DEGREE", "EXTEND_BELOW", "PRECISION_TARGET", "REPAIR_RECALL"]
+           "CAPTURE_USUAL_DEGREE", "EXTEND_BELOW", "PRECISION_TARGET", "REPAIR_RECALL",
+           "MISSING_RECALL"]
 
 #: Maximum degree tried by default, per dimension (the paper: degrees 2 to 10 are the norm).
 DEFAULT_MAX_DEGREE = {2: 10, 3: 8}
@@ -94,6 +95,9 @@ TOLERANCE = 0.01
 #: it. A degree that misses the data as well is too low, not defective.
 PRECISION_TARGET = 0.95
 REPAIR_RECALL = 0.9
+#: capture rule, 3D: a clean, precise degree whose recall is below this gets a round for the
+#: surface it misses (:meth:`CaptureRule.fills_missing`).
+MISSING_RECALL = 0.95
 
 
 def select_degree(degrees: Sequence[int], smoothness: Sequence[float], epsilon: float = 0.01,
@@ -338,6 +342,11 @@ class DegreeRule(ABC):
         start); ``best_f`` is the best clean F-score of the degrees before it. Default: clean."""
         return self.is_clean(entry.quality)
 
+    def fills_missing(self, entry: DegreeResult, best_f: float = 0.0) -> bool:
+        """Whether ``entry``, done or repaired, gets a round for the data its zero set misses
+        (:func:`ipfit.degree.repair.fill_missing`); ``best_f`` as for :meth:`is_done`. Default: no."""
+        return False
+
     @abstractmethod
     def stop(self, results: Sequence[DegreeResult], epsilon: float) -> str | None:
         """Whether the loop stops after the last of ``results``: why in one word (it becomes
@@ -486,6 +495,14 @@ class CaptureRule(DegreeRule):
         if q.precision >= PRECISION_TARGET or q.recall < REPAIR_RECALL:
             return True
         return 2 * q.recall / (1 + q.recall) < best_f - TOLERANCE
+
+    def fills_missing(self, entry, best_f=0.0):
+        """3D: a clean degree in the race (F-score within :data:`TOLERANCE` of ``best_f`` or above)
+        whose zero set lies on the data (precision at least :data:`PRECISION_TARGET`) but misses
+        some of it (recall below :data:`MISSING_RECALL`): a thin part cut short."""
+        q = entry.quality
+        return (entry.polynomial.dim == 3 and self.is_clean(q) and q.precision >= PRECISION_TARGET
+                and q.recall < MISSING_RECALL and q.f_score >= best_f - TOLERANCE)
 
     def stop(self, results, epsilon):
         return capture_stop(results, epsilon)

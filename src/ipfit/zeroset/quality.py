@@ -65,7 +65,8 @@ from ..polynomial import ImplicitPolynomial
 from .extract import ZeroSet, extract_zero_set
 from .topology import Topology, data_topology, zero_set_topology
 
-__all__ = ["Quality", "quality", "spurious_components", "stray_samples", "looks_like_contour", "DEFAULT_TAU_FRACTION"]
+__all__ = ["Quality", "quality", "spurious_components", "stray_samples", "missed_points", "looks_like_contour",
+           "DEFAULT_TAU_FRACTION"]
 
 
 @dataclass(frozen=True)
@@ -264,7 +265,7 @@ def stray_samples(model: ImplicitPolynomial | ZeroSet, points: ArrayLike | Cloud
     >>> bool(np.all(stray_samples(zs, right)[:, 0] < 0))
     True
     """
-    _, flags, samples, d_zero, tau = _measure(model, points, **options, details=True)
+    _, flags, samples, d_zero, tau, _ = _measure(model, points, **options, details=True)
     far = d_zero > (tau if distance is None else check_positive(distance, "distance"))
     if spurious_only:
         far &= flags[samples.labels] if len(flags) else False
@@ -272,10 +273,28 @@ def stray_samples(model: ImplicitPolynomial | ZeroSet, points: ArrayLike | Cloud
     return far[:: max(1, -(-len(far) // check_int(most, "most", minimum=1)))]
 
 
+def missed_points(model: ImplicitPolynomial | ZeroSet, points: ArrayLike | Cloud, *, distance: float | None = None,
+                  **options) -> NDArray[np.bool_]:
+    """Which data points have no zero set within ``distance`` (default τ): the part of the data
+    that costs recall (a thin part the zero set cuts short, a hole in it). One flag per point;
+    ``options`` are those of :func:`quality` (a cloud's measurement of the same polynomial is
+    reused).
+
+    >>> from ipfit.datasets import synthetic
+    >>> circle = synthetic.from_terms(2, 2, {(2, 0): 1, (0, 2): 1, (0, 0): -1})
+    >>> points = np.array([[1.0, 0.0], [0.0, 1.0], [2.0, 0.0]])
+    >>> missed_points(circle, points, tau=0.1).tolist()
+    [False, False, True]
+    """
+    _, _, _, _, tau, d_data = _measure(model, points, **options, details=True)
+    return d_data > (tau if distance is None else check_positive(distance, "distance"))
+
+
 def _measure(model, points, *, details: bool = False, **options):
     """(Quality, spurious flags) or, with ``details``, (None, flags, zero-set samples, their
-    distances to the shape, τ). A cloud keeps the last few measurements of polynomials, so that
-    a repair's stray samples reuse the measurement that judged its degree."""
+    distances to the shape, τ, the data points' distances to the zero set). A cloud keeps the
+    last few measurements of polynomials, so that a repair's stray samples reuse the measurement
+    that judged its degree."""
     unknown = set(options) - set(_MEASURE_DEFAULTS)
     if unknown:
         raise TypeError(f"unexpected keyword argument {sorted(unknown)[0]!r}")
@@ -289,8 +308,8 @@ def _measure(model, points, *, details: bool = False, **options):
                repr(sorted(options.items())))
         found = cloud.derived("measurement", key, lambda: _measure_now(model, cloud, **options),
                               keep=_MEASUREMENTS_KEPT)
-    q, flags, samples, d_zero, tau = found
-    return (None, flags, samples, d_zero, tau) if details else (q, flags)
+    q, flags, samples, d_zero, tau, d_data = found
+    return (None, flags, samples, d_zero, tau, d_data) if details else (q, flags)
 
 
 # A degree and its repair rounds measure a few polynomials, each kept with its zero set's samples.
@@ -301,7 +320,8 @@ _MEASURE_DEFAULTS = dict(faces=None, ordered_contour=False, tau=None, tau_fracti
 
 def _measure_now(model, cloud: Cloud, *, ordered_contour, tau, tau_fraction, bounds, margin, resolution, spacing,
                  max_samples):
-    """(Quality, spurious flags, zero-set samples, their distances to the shape, τ)."""
+    """(Quality, spurious flags, zero-set samples, their distances to the shape, τ, the data
+    points' distances to the zero set)."""
     pts, dim = cloud.points, cloud.dim
     if isinstance(model, ImplicitPolynomial):
         if model.dim != dim:
@@ -341,7 +361,7 @@ def _measure_now(model, cloud: Cloud, *, ordered_contour, tau, tau_fraction, bou
                         grid_step=zs.step, reference=reference, topology=zero_set_topology(zs),
                         data_topology=shape), np.zeros(0, dtype=bool),
                 Samples(np.empty((0, dim)), np.empty(0), np.empty(0, dtype=np.int64), np.empty(0, dtype=np.int64)),
-                np.empty(0), tau)
+                np.empty(0), tau, np.full(len(pts), math.inf))
 
     samples = zs.sample(spacing, max_samples=max_samples)
     if dim == 2:
@@ -374,7 +394,7 @@ def _measure_now(model, cloud: Cloud, *, ordered_contour, tau, tau_fraction, bou
                     zero_set_to_data=zero_to_data, grid_step=zs.step, reference=reference, spurious=spurious,
                     n_open=int((zs.component_open & ~flags).sum()),
                     topology=zero_set_topology(zs, spurious, flags, tau), data_topology=shape),
-            flags, samples, d_zero, tau)
+            flags, samples, d_zero, tau, d_data)
 
 
 def _spurious_components(samples, nearest: NDArray, tau: float) -> tuple[dict, ...]:
