@@ -56,8 +56,8 @@ TOPOLOGY_FAR = 0.25
 #: not the zero set on the data (a sparse, thin model's fit can shrink off its thin parts).
 RECALL_KEPT = 0.02
 #: The places of missing surface lie this many τ out from the data points on both sides: the
-#: zero set must pass between them, within a quarter of τ of the point (τ/2 held the chopper's
-#: rotor blades less well: F 0.95 against 0.97 at τ/4, docs/quality-3d.md).
+#: zero set must pass between them, well within τ of the point, and the places stay clear of the
+#: other side of a part thinner than τ.
 MISSING_OFFSET = 0.25
 #: At most this many missed points (evenly taken) get their two places.
 MISSING_PLACES = 300
