@@ -76,13 +76,13 @@ def _summary(rows: list[dict], pipeline: str) -> dict:
             "n": len(mine)}
 
 
-def conditioning(names=BUNDLED, degrees=(6, 10, 14)) -> list[str]:
-    """Condition numbers, on each bundled contour's normalised points, of the monomial basis the
-    coefficients are written in and of the whitened coordinates the search and the polish use."""
+def conditioning(names=BUNDLED, degrees=(6, 10, 14), label: str = "contour") -> list[str]:
+    """Condition numbers, on each shape's normalised points (a bundled dataset's name or a file),
+    of the monomial basis the coefficients are written in (the stacked values and gradients)."""
     from ipfit import basis, load
     from ipfit.polynomial import Normalization
 
-    lines = ["| contour | " + " | ".join(f"κ at degree {g}" for g in degrees) + " |",
+    lines = [f"| {label} | " + " | ".join(f"κ at degree {g}" for g in degrees) + " |",
              "|---|" + "---|" * len(degrees)]
     for name in names:
         points = load(name).points
@@ -92,7 +92,7 @@ def conditioning(names=BUNDLED, degrees=(6, 10, 14)) -> list[str]:
             m, grads = basis.monomials_and_gradients(u, g)
             sv = np.linalg.svd(np.concatenate([m, grads.reshape(-1, m.shape[1])]), compute_uv=False)
             cells.append(f"{sv[0] / sv[-1]:.1e}")
-        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+        lines.append(f"| {Path(name).stem} | " + " | ".join(cells) + " |")
     return lines
 
 

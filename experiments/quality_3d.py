@@ -31,6 +31,7 @@ from pathlib import Path
 
 import numpy as np
 from _versions import load_data, n_beyond_specks, run_side_by_side, spurious_cell, spurious_record
+from degree_rule import conditioning
 
 BUNDLED = ("bunny", "apple", "duck")
 PIPELINES = ("before", "capture")
@@ -88,7 +89,7 @@ def figures(rows: list[dict], specs: dict[str, str], folder: Path) -> None:
         plt.close(fig)
 
 
-def markdown(rows: list[dict], seed: int, before_label: str) -> str:
+def markdown(rows: list[dict], seed: int, before_label: str, specs: dict[str, str]) -> str:
     by_model: dict[str, dict[str, dict]] = {}
     for r in rows:
         by_model.setdefault(r["model"], {})[r["pipeline"]] = r
@@ -153,6 +154,15 @@ def markdown(rows: list[dict], seed: int, before_label: str) -> str:
                                               f"{spurious_cell(d)} / {d['seconds']:.1f}")
             lines.append(f"| {m} | {g} | {c(before.get(g))} | {c(after.get(g))} | "
                          f"{after[g]['repairs'] if g in after else '—'} |")
+    kappa = [specs[m] for m in ("apple", "duck", "chopper", "big_spider", "walkman") if m in specs]
+    if kappa:
+        lines += ["", "## Conditioning at degrees 10 and 12", "",
+                  "As in `docs/degree-rule.md` for 2D: κ is the condition number of the monomial basis the coefficients "
+                  "are written in, the stacked values and gradients [M; ∂M/∂x; ∂M/∂y; ∂M/∂z] on each model's "
+                  "normalised points. The search and the polish move in y = R a (`Objective.whitening`), where κ = 1 "
+                  "on the data, and the start fits are solved by QR, so a degree-12 surface is as well posed for them as "
+                  "a degree-6 one; the stored monomial coefficients of a degree-12 fit are the ill-conditioned side.", "",
+                  *conditioning(kappa, (6, 8, 10, 12), label="model")]
     lines += ["", "## Figures", "", "The selected zero set of each pipeline, the data's points drawn over it.", ""]
     lines += [f"![{m}](quality-3d/{m}.png)" for m in models]
     lines += ["", "Regenerate: `git worktree add --detach ../ipfit-before 4a7a05d`, then "
@@ -186,7 +196,7 @@ def main(argv=None) -> int:
         rows = run(order, args.before, args.seed)
         out.with_suffix(".json").write_text(json.dumps(rows, indent=1), encoding="utf-8")
     figures(rows, specs, out.parent / out.stem)
-    out.write_text(markdown(rows, args.seed, args.before_label), encoding="utf-8")
+    out.write_text(markdown(rows, args.seed, args.before_label, specs), encoding="utf-8")
     print(f"wrote {out}")
     return 0
 
