@@ -283,7 +283,8 @@ def _ellipsoids(c_by_degree: dict[int, float], fitted: list[int]):
     """A fit function that returns, at degree g, the ellipsoid x² + y² + (z/c_g)² = 1 written as a
     degree-g polynomial: against the unit sphere its F-score rises as c_g nears 1 (hand-measured
     at τ = 2 % of the diagonal: c 1.6 → F 0.45, 1.35 → 0.54, 1.2 → 0.68, 1.15 → 0.77, 1.1 → 0.91,
-    1.07 → 0.98)."""
+    1.075 → 0.97; every margin the tests below rely on, at least 0.01, holds for the sphere's seeds
+    0-4 at 600 and 1,000 points)."""
     def fit(points, normals, degree):
         fitted.append(degree)
         c = c_by_degree[degree]
@@ -293,13 +294,13 @@ def _ellipsoids(c_by_degree: dict[int, float], fitted: list[int]):
 
 @pytest.mark.parametrize("c_by_degree, expected_fitted, expected_selected", [
     # every degree gains and stays below 0.95: degrees 10 and 12 are fitted, 12 is the best
-    ({2: 1.6, 4: 1.35, 6: 1.2, 8: 1.15, 10: 1.1, 12: 1.07}, [2, 4, 6, 8, 10, 12], 12),
+    ({2: 1.6, 4: 1.35, 6: 1.2, 8: 1.15, 10: 1.1, 12: 1.075}, [2, 4, 6, 8, 10, 12], 12),
     # degree 10 gains nothing over degree 8: the loop ends there, degree 8 is selected
-    ({2: 1.6, 4: 1.35, 6: 1.2, 8: 1.15, 10: 1.15, 12: 1.07}, [2, 4, 6, 8, 10], 8),
+    ({2: 1.6, 4: 1.35, 6: 1.2, 8: 1.15, 10: 1.15, 12: 1.075}, [2, 4, 6, 8, 10], 8),
     # degree 8 passes 0.95: no higher degree is worth its cost
-    ({2: 1.6, 4: 1.35, 6: 1.2, 8: 1.07, 10: 1.02, 12: 1.0}, [2, 4, 6, 8], 8),
+    ({2: 1.6, 4: 1.35, 6: 1.2, 8: 1.075, 10: 1.02, 12: 1.0}, [2, 4, 6, 8], 8),
     # degree 8 gains nothing over degree 6: the loop ends at 8 as before
-    ({2: 1.6, 4: 1.35, 6: 1.15, 8: 1.15, 10: 1.07, 12: 1.0}, [2, 4, 6, 8], 6),
+    ({2: 1.6, 4: 1.35, 6: 1.15, 8: 1.15, 10: 1.075, 12: 1.0}, [2, 4, 6, 8], 6),
 ])
 def test_3d_degrees_above_8_are_fitted_while_each_raises_the_f_score(c_by_degree, expected_fitted,
                                                                      expected_selected):
@@ -319,7 +320,7 @@ def test_3d_degrees_above_8_need_two_points_per_coefficient():
     sphere = synthetic.sphere(600, rng=0)
     fitted: list[int] = []
     fit_adaptive(sphere.points, sphere.normals,
-                 method=_ellipsoids({2: 1.6, 4: 1.35, 6: 1.2, 8: 1.15, 10: 1.1, 12: 1.07}, fitted))
+                 method=_ellipsoids({2: 1.6, 4: 1.35, 6: 1.2, 8: 1.15, 10: 1.1, 12: 1.075}, fitted))
     assert fitted == [2, 4, 6, 8, 10]
 
 
