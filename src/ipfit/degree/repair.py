@@ -96,6 +96,18 @@ def _attempt(target: str, weight: float, trial: DegreeResult, rule: DegreeRule) 
             "topology_matches": q.topology_matches, "seconds": trial.seconds}
 
 
+def _round_options(options: SearchOptions, weight: float, dim: int) -> SearchOptions:
+    """A repair round's settings: a short polish from the degree's fit at far-field weight ``weight``."""
+    polish = min(CLEANUP_POLISH_ITERATIONS, options.for_method("polish", dim=dim).polish_iterations)
+    return options.replace(far_term_weight=weight, start_fits=(), polish_iterations=polish)
+
+
+def _as_fitted(repaired: DegreeResult, entry: DegreeResult) -> DegreeResult:
+    """The repaired degree under its fit's method name ("cleanup" records the repair)."""
+    return dataclasses.replace(repaired, polynomial=repaired.polynomial.with_coefficients(
+        repaired.polynomial.coefficients, method=entry.polynomial.method))
+
+
 def _topology_only(entry: DegreeResult, rule: DegreeRule) -> bool:
     """Whether the topology alone keeps ``entry`` from being clean for ``rule``."""
     q = _measured(entry)
@@ -126,7 +138,6 @@ def repair(entry: DegreeResult, refit: Callable[..., DegreeResult], options: Sea
     from the coefficients ``start``, and measures it. ``cloud`` is the fit's data (its faces
     describe the shape, with ``ordered_contour``), whose kept measurements the repair reuses.
     """
-    polish = min(CLEANUP_POLISH_ITERATIONS, options.for_method("polish", dim=cloud.dim).polish_iterations)
     stray = _stray_distance(_measured(entry).tau, cloud, ordered_contour)
     target = "precision" if rule.is_clean(entry.quality) else \
         "topology" if _topology_only(entry, rule) else "spurious components"
@@ -167,8 +178,8 @@ def repair(entry: DegreeResult, refit: Callable[..., DegreeResult], options: Sea
                 places.append(inside)
         if not places:
             break
-        trial = refit(options.replace(far_term_weight=weight, start_fits=(), polish_iterations=polish),
-                      (entry if fix_topology else current).x, np.concatenate(places))
+        trial = refit(_round_options(options, weight, cloud.dim), (entry if fix_topology else current).x,
+                      np.concatenate(places))
         nfev += trial.nfev
         attempts.append(_attempt(target, weight, trial, rule))
         if not _better(trial, best, rule, _measured(entry).recall):
@@ -180,9 +191,7 @@ def repair(entry: DegreeResult, refit: Callable[..., DegreeResult], options: Sea
         if rule.is_done(best, best_f):
             break
     if best is not entry:
-        # The degree's fit is still the method's, repaired: keep its name ("cleanup" records it).
-        best = dataclasses.replace(best, polynomial=best.polynomial.with_coefficients(
-            best.polynomial.coefficients, method=entry.polynomial.method))
+        best = _as_fitted(best, entry)
     return dataclasses.replace(best, cleanup=tuple(attempts), nfev=nfev,
                                seconds=entry.seconds + sum(a["seconds"] for a in attempts))
 
@@ -206,13 +215,11 @@ def fill_missing(entry: DegreeResult, refit: Callable[..., DegreeResult], option
     where = where[:: -(-len(where) // MISSING_PLACES)]
     out = MISSING_OFFSET * q.tau * cloud.unit_normals[where]
     places = np.concatenate([cloud.points[where] + out, cloud.points[where] - out])
-    polish = min(CLEANUP_POLISH_ITERATIONS, options.for_method("polish", dim=cloud.dim).polish_iterations)
     weight = options.cleanup_weights[-1] if options.cleanup_weights else options.far_term_weight
-    trial = refit(options.replace(far_term_weight=weight, start_fits=(), polish_iterations=polish), entry.x, places)
+    trial = refit(_round_options(options, weight, cloud.dim), entry.x, places)
     attempt = _attempt("missing surface", weight, trial, rule)
     better = rule.is_clean(trial.quality) and _measured(trial).f_score > q.f_score and \
         not (q.topology_matches is True and _measured(trial).topology_matches is False)
-    best = dataclasses.replace(trial, polynomial=trial.polynomial.with_coefficients(
-        trial.polynomial.coefficients, method=entry.polynomial.method)) if better else entry
+    best = _as_fitted(trial, entry) if better else entry
     return dataclasses.replace(best, cleanup=(*entry.cleanup, attempt), nfev=entry.nfev + trial.nfev,
                                seconds=entry.seconds + attempt["seconds"])
