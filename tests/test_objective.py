@@ -265,6 +265,33 @@ def test_from_data_normalises_like_the_linear_fits(rng):
     assert obj.normalization.scale == pytest.approx(norm.scale)
 
 
+def test_normal_agreement_of_the_unit_circle_is_two_per_point():
+    # f = x² + y² − 1: ∇f = 2 (x, y) = 2 n on the circle, so Σ ∇f·n = 2 N by hand.
+    t = np.linspace(0.0, 2.0 * np.pi, 40, endpoint=False)
+    ring = np.c_[np.cos(t), np.sin(t)]
+    agreement = Objective(ring, ring, 2).normal_agreement()
+    assert agreement @ np.array(CIRCLE) == pytest.approx(80.0, rel=1e-12)
+    assert agreement @ -np.array(CIRCLE) == pytest.approx(-80.0, rel=1e-12)
+
+
+@pytest.mark.parametrize("dim, degree", [(2, 5), (3, 4)])
+def test_normal_agreement_is_the_weighted_sum_of_gradients_along_the_normals(rng, dim, degree, monkeypatch):
+    u = rng.normal(size=(700, dim))
+    normals = rng.normal(size=(700, dim))
+    weights = rng.uniform(0.0, 1.0, 700)
+    unit = normals / np.linalg.norm(normals, axis=1, keepdims=True)
+    m, dm = basis.monomials_and_gradients(u, degree)
+    population = rng.normal(size=(4, m.shape[1]))
+    expected = [np.sum(weights * np.sum(np.stack([dk @ a for dk in dm], axis=1) * unit, axis=1)) for a in population]
+    cached = Objective(u, normals, degree, weights=weights).normal_agreement()
+    monkeypatch.setattr(objective_module, "CACHE_BYTES", 0)
+    monkeypatch.setattr(objective_module, "_SINGLE_ROWS", 97)  # the design rebuilt in ragged blocks
+    rebuilt = Objective(u, normals, degree, weights=weights).normal_agreement()
+    size = np.abs(population).sum(axis=1) * np.abs(dm).max() * len(u)
+    for agreement in (cached, rebuilt):
+        np.testing.assert_allclose(population @ agreement, expected, rtol=1e-9, atol=1e-12 * size.max())
+
+
 def test_uncached_blocks_give_the_cached_results(rng, monkeypatch):
     shape = synthetic.torus(1500, rng=rng)
     population = shape.polynomial.coefficients + 0.1 * rng.normal(size=(6, 35))

@@ -285,8 +285,9 @@ def test_invalid_data():
 
 
 def test_a_big_clouds_solutions_have_the_sign_all_its_normals_give(rng):
-    # Beyond FULL_POLISH_POINTS the sign of each solution is decided on a strided sample; it must
-    # be the one every point's normal gives: f grows outwards (the gradient agrees with the normals).
+    # The sign of each solution comes from the objective's normal moments (one pass over the
+    # design matrix, not the gradients at every point per solution); it must be the one every
+    # point's normal gives: f grows outwards (the gradient agrees with the normals).
     from ipfit.fitting.refine import FULL_POLISH_POINTS
 
     shape = synthetic.torus(3 * FULL_POLISH_POINTS // 2)

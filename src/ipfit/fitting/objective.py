@@ -298,6 +298,7 @@ class Objective:
         self._far64 = far64 or (np.empty((0, self.n_coefficients)), np.empty(0), np.empty(0))
         self._member_rows: NDArray[np.float64] | None = None
         self._whitening: NDArray[np.float64] | None = None
+        self._agreement: NDArray[np.float64] | None = None
 
     # -- construction from raw data ---------------------------------------------------------
     @classmethod
@@ -461,6 +462,24 @@ class Objective:
             sign = np.where(np.diag(r) < 0, -1.0, 1.0)
             self._whitening = sign[:, None] * r
         return self._whitening
+
+    def normal_agreement(self) -> NDArray[np.float64]:
+        r"""Vector v with v · a = Σ_i w_i ∇f(u_i) · n_i for any coefficients a (float64).
+
+        How much the gradients agree with the normals is linear in the coefficients, so one pass
+        over the design matrix gives it for every polynomial of this degree: the sign that makes
+        f > 0 outside (:meth:`~ipfit.ImplicitPolynomial.canonical`) without evaluating gradients
+        at every point once per polynomial.
+        """
+        if self._agreement is None:
+            moments = np.zeros((self.n_lower, self.dim))
+            pulled = self.normals64 * self._weights[:, None]
+            for lo, hi in basis.point_blocks(self.n_points, _SINGLE_ROWS):
+                moments += self._design(lo, hi, np.float64)[:, : self.n_lower].T @ pulled[lo:hi]
+            agreement = np.zeros(self.n_coefficients)
+            basis.add_gradient_adjoint(agreement, moments, self.degree)
+            self._agreement = agreement
+        return self._agreement
 
     # -- single member with gradient -------------------------------------------------------------
     def value_and_grad(self, coefficients: ArrayLike) -> tuple[float, NDArray[np.float64]]:

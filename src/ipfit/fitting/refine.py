@@ -393,19 +393,19 @@ def _best_distinct(pool, pool_fun, n_solutions: int) -> list[int]:
     return kept
 
 
-def _solutions(template, pool, pool_fun, kept, obj64, pts, unit_normals, starts: StartFits):
+def _solutions(template, pool, pool_fun, kept, obj64, starts: StartFits):
     """Canonical-sign polynomials with their measures; the first is never above the best start."""
     out = []
-    # The sign only needs the normals' average agreement: a strided sample of at most
-    # FULL_POLISH_POINTS points decides it (the gradients at a million points, per solution,
-    # cost minutes); smaller clouds use every point.
-    every = -(-len(pts) // FULL_POLISH_POINTS)
+    # canonical()'s sign (the gradients along the points' normals, as much as each point counts),
+    # from one pass over the design matrix instead of the gradients at every point per solution
+    agreement = obj64.normal_agreement()
     for rank, i in enumerate(kept):
-        poly = template.with_coefficients(pool[i]).canonical(pts[::every], unit_normals[::every])
+        coef = pool[i] / np.linalg.norm(pool[i])
+        poly = template.with_coefficients(-coef if float(agreement @ coef) < 0 else coef)
         m = obj64.measures(poly.coefficients)[0]
         if m.distance > pool_fun[i] + 1e-12 * max(1.0, abs(pool_fun[i])):
-            # canonical() chose the sign by the raw gradient agreement, which in rare cases
-            # disagrees with the mean cosine; keep the orientation that was optimised.
+            # The raw gradient agreement in rare cases disagrees with the mean cosine: keep
+            # the orientation that was optimised.
             poly = template.with_coefficients(pool[i] / np.linalg.norm(pool[i]))
             m = obj64.measures(poly.coefficients)[0]
         if rank == 0 and len(starts) and m.distance > starts.distances[0]:
@@ -420,7 +420,7 @@ def _solutions(template, pool, pool_fun, kept, obj64, pts, unit_normals, starts:
 def _refine(cloud: Cloud, degree, settings: MethodOptions, delta, given_starts, keep_clear, noise_scale, gen,
             callback) -> RefineResult:
     started = time.perf_counter()
-    pts, unit_normals = cloud.points, cloud.unit_normals
+    pts = cloud.points
     method, dim = settings.method, pts.shape[1]
     d = basis.n_coefficients(dim, degree)
     size = settings.population_size or 4 * d
@@ -467,9 +467,7 @@ def _refine(cloud: Cloud, degree, settings: MethodOptions, delta, given_starts, 
 
     kept = _best_distinct(pool, pool_fun, settings.n_solutions)
     template = ImplicitPolynomial(basis.exponents(dim, degree), pool[kept[0]], norm, method=method)
-    # the sign from the agreement of the points that count, as much as they count
-    agreeing = unit_normals if cloud.weights is None else cloud.oriented * cloud.weights[:, None]
-    solutions = _solutions(template, pool, pool_fun, kept, obj64, pts, agreeing, starts)
+    solutions = _solutions(template, pool, pool_fun, kept, obj64, starts)
     best = solutions[0]
     fun = float(obj64(best.coefficients)[0])
     if len(starts) and best.measures["distance"] >= starts.distances[0] * (1 - _SAME_DISTANCE):
