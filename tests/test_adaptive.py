@@ -310,7 +310,8 @@ def test_3d_degrees_above_8_are_fitted_while_each_raises_the_f_score(c_by_degree
     assert fitted == expected_fitted
     assert [d.degree for d in result.degrees] == expected_fitted
     assert result.selected_degree == expected_selected
-    assert result.reason == "no_f_gain"
+    # stopped for want of a gain, unless the last degree there is (12) was reached
+    assert result.reason == ("max_degree" if fitted[-1] == 12 else "no_f_gain")
     if len(fitted) > 4:
         assert result.degrees[4].reason.startswith(("selected", "superseded", "clean"))
 
@@ -322,6 +323,19 @@ def test_3d_degrees_above_8_need_two_points_per_coefficient():
     fit_adaptive(sphere.points, sphere.normals,
                  method=_ellipsoids({2: 1.6, 4: 1.35, 6: 1.2, 8: 1.15, 10: 1.1, 12: 1.075}, fitted))
     assert fitted == [2, 4, 6, 8, 10]
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_no_gain_is_not_the_reason_when_the_points_allow_no_higher_degree(seed):
+    # 560 points: degree 10 (286 coefficients) needs 572; degree 8 passes 0.95, which alone
+    # would end the loop there, but degree 8 is the last the points allow anyway.
+    sphere = synthetic.sphere(560, rng=seed)
+    fitted: list[int] = []
+    result = fit_adaptive(sphere.points, sphere.normals,
+                          method=_ellipsoids({2: 1.6, 4: 1.35, 6: 1.2, 8: 1.075, 10: 1.0, 12: 1.0}, fitted))
+    assert fitted == [2, 4, 6, 8] and result.selected_degree == 8
+    assert result.reason == "max_degree"
+    assert "the last degree was reached" in result.message and "above 8" not in result.message
 
 
 def test_the_loop_gives_a_degree_its_missing_surface_round_when_the_rule_asks():

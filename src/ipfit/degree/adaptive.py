@@ -464,7 +464,8 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
         if progress is not None:
             progress({"event": "degree_done", **entry.to_dict()})
         stop = rule.stop(results, epsilon)
-        if stop is not None:
+        # Not trying a higher degree for want of a gain says nothing when there is none to try.
+        if stop is not None and not (stop == "no_f_gain" and degree == degrees[-1]):
             reason = stop
             break
     variant = None
