@@ -2,6 +2,7 @@
 
 import io as pyio
 import os
+import re
 from pathlib import Path
 
 import numpy as np
@@ -225,6 +226,50 @@ def test_ply_quads_are_triangulated(tmp_path):
     PlyData([PlyElement.describe(vtab, "vertex"), PlyElement.describe(ftab, "face")]).write(str(tmp_path / "c.ply"))
     mesh = io.read_mesh(tmp_path / "c.ply")
     assert mesh.faces.shape == (12, 3)
+
+
+@pytest.mark.parametrize("path", sorted((DATA_DIR / "3d").glob("*.ply")) + sorted(FIXTURES.glob("*.ply")),
+                         ids=lambda p: p.name)
+def test_an_ascii_ply_is_parsed_by_numpy_as_plyfile_parses_it(path):
+    from ipfit.io.meshfiles import _ascii_ply, _plyfile_elements
+
+    raw = path.read_bytes()
+    fast, slow = _ascii_ply(raw), _plyfile_elements(path, raw)
+    assert fast is not None
+    assert fast[0] == slow[0] and fast[2] == slow[2]  # elements, comments
+    assert fast[1].dtype == slow[1].dtype
+    for name in slow[1].dtype.names:
+        assert np.array_equal(fast[1][name], slow[1][name])  # the same text, the same float32 values
+    assert np.array_equal(fast[3][0], slow[3][0]) and np.array_equal(fast[3][1], slow[3][1].astype(np.int64))
+
+
+def test_unusual_ascii_plys_are_left_to_plyfile(tmp_path):
+    from ipfit.io.meshfiles import _ascii_ply
+
+    points, faces = _tetra()
+    # a triangle and a quad: mixed polygons
+    vtab = np.array([tuple(p) for p in points] + [(1.0, 1.0, 0.0)], dtype=[("x", "f4"), ("y", "f4"), ("z", "f4")])
+    ftab = np.empty(2, dtype=[("vertex_indices", object)])
+    ftab["vertex_indices"] = [np.array([0, 2, 1], "i4"), np.array([0, 1, 4, 2], "i4")]
+    PlyData([PlyElement.describe(vtab, "vertex"), PlyElement.describe(ftab, "face")], text=True).write(
+        str(tmp_path / "mixed.ply"))
+    assert _ascii_ply((tmp_path / "mixed.ply").read_bytes()) is None
+    assert io.read_mesh(tmp_path / "mixed.ply").faces.tolist() == [[0, 2, 1], [0, 1, 4], [0, 4, 2]]
+    good = _ply(tmp_path / "t.ply", points, None, faces).read_bytes()
+    assert _ascii_ply(good) is not None
+    head, body = good.split(b"end_header\n")
+    rows = body.split(b"\n")
+    # plyfile's own one-line complaint, row and property named, as before
+    for bad, said in [(rows[:1] + [b""] + rows[1:], "row 1: property 'x': early end-of-line"),  # numpy skips it
+                      ([rows[0] + b" 7"] + rows[1:], "row 0: expected end-of-line"),
+                      ([b" ".join(rows[0].split()[:-1])] + rows[1:], "row 0: property 'confidence': early end-of-line"),
+                      (rows[:4] + [b"3 0 1 99999999999"] + rows[5:], "'face': row 0: property 'vertex_indices'")]:
+        raw = head + b"end_header\n" + b"\n".join(bad)
+        assert _ascii_ply(raw) is None, said
+        (tmp_path / "bad.ply").write_bytes(raw)
+        with pytest.raises(ReadError, match=re.escape(said)):
+            io.read_mesh(tmp_path / "bad.ply")
+    assert _ascii_ply(_ply(tmp_path / "b.ply", points, None, faces, text=False).read_bytes()) is None
 
 
 def test_obj_with_and_without_normals(tmp_path):
