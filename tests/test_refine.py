@@ -296,3 +296,32 @@ def test_a_big_clouds_solutions_have_the_sign_all_its_normals_give(rng):
     for poly in res.solutions:
         assert np.sum(poly.gradient(shape.points) * shape.normals) > 0
         assert np.allclose(poly.canonical(shape.points, shape.normals).coefficients, poly.coefficients, atol=0)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_two_polishes_on_two_threads_are_the_polishes_one_after_the_other(seed):
+    # The same arithmetic whichever thread runs it: the results are equal to the bit, and the
+    # callback hears only the first polish, always on the caller's thread.
+    import threading
+
+    from ipfit.fitting.objective import Objective
+    from ipfit.fitting.refine import _polish_each
+
+    rng = np.random.default_rng(seed)
+    shape = synthetic.torus(1500, rng=rng)
+    exact = shape.polynomial.coefficients
+    x0s = [exact + 0.3 * rng.normal(size=exact.size), exact + 0.3 * rng.normal(size=exact.size)]
+    r = Objective(shape.points, shape.normals, 4).whitening()
+    heard = []
+
+    def callback(state):
+        heard.append((threading.get_ident(), state.nit))
+
+    runs = {threads: _polish_each(Objective(shape.points, shape.normals, 4, threads=threads), x0s, 200, r,
+                                  callback) for threads in (1, 2)}
+    for alone, side_by_side in zip(runs[1], runs[2], strict=True):
+        assert np.array_equal(alone.x, side_by_side.x) and alone.fun == side_by_side.fun
+        assert alone.nit == side_by_side.nit > 0
+    assert {ident for ident, _ in heard} == {threading.get_ident()}
+    assert len(heard) == 2 * runs[1][0].nit  # the first polish's iterations, in each of the two calls
+    assert runs[1][0].fun < Objective(shape.points, shape.normals, 4)(x0s[0])[0]  # it did polish

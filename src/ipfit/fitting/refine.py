@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Mapping, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any
@@ -189,7 +190,9 @@ def refine(points: ArrayLike | Cloud, normals: ArrayLike | None, degree: int, me
         :class:`~ipfit.optimize.OptimizeResult` whose ``x`` is the current best unit
         coefficient vector, ``fun`` the value of the objective being minimised, ``nit``,
         ``nfev``, and ``message`` the stage ("de", "pso" or "polish"). Returning True stops
-        that stage.
+        that stage. The polish from the best start fit, when it is not the best candidate,
+        runs alongside the one from the best candidate (on a second thread when there are two
+        cores) and reports nothing: the callback is always called from the caller's thread.
 
     Returns
     -------
@@ -363,8 +366,7 @@ def _polish(obj64, sub64, pool, pool_fun, has_starts: bool, r, settings: MethodO
         starts.append(0)
     first = obj64 if sub64 is None else sub64
     staged = _staged(callback, "polish", lambda x: x)
-    polished = [lbfgs(first.value_and_grad, pool[i], maxiter=settings.polish_iterations, precondition=r,
-                      callback=staged) for i in starts]
+    polished = _polish_each(first, [pool[i] for i in starts], settings.polish_iterations, r, staged)
     xs = np.array([res.x for res in polished])
     if sub64 is None:
         return xs, np.array([res.fun for res in polished]), polished
@@ -373,6 +375,25 @@ def _polish(obj64, sub64, pool, pool_fun, has_starts: bool, r, settings: MethodO
                   maxiter=min(settings.polish_iterations, full_polish_budget(obj64.n_points)), precondition=r,
                   callback=staged)
     return np.vstack([xs, final.x]), np.append(funs, final.fun), [*polished, final]
+
+
+def _polish_each(obj: Objective, x0s: list[NDArray], maxiter: int, r, callback) -> list[OptimizeResult]:
+    """L-BFGS from each start, the first reporting to ``callback``; with two starts and two threads
+    the second runs meanwhile on a worker thread, silent (a user's callback is only ever called
+    from the caller's thread). The objective's pass is compiled and releases the GIL, and each
+    run does exactly the arithmetic it does alone: the same results, in the time of the longer."""
+    def run(x0, report=None):
+        return lbfgs(obj.value_and_grad, x0, maxiter=maxiter, precondition=r, callback=report)
+
+    if len(x0s) != 2 or obj.threads < 2:
+        return [run(x0, callback if i == 0 else None) for i, x0 in enumerate(x0s)]
+    obj.value_and_grad(x0s[0])  # the stacked rows the pass reuses, built once before the threads
+    worker = ThreadPoolExecutor(1)
+    try:
+        other = worker.submit(run, x0s[1])
+        return [run(x0s[0], callback), other.result()]
+    finally:  # an interrupt does not wait for the other run: it ends on its own, its result unused
+        worker.shutdown(wait=False, cancel_futures=True)
 
 
 def full_polish_budget(n_points: int) -> int:
