@@ -83,3 +83,24 @@ def test_population_gradient_coefficients_are_the_derivative_maps(dim, dtype, rn
     for k in range(dim):
         np.testing.assert_allclose(low @ out[:, k * members:(k + 1) * members].astype(np.float64),
                                    dm[k] @ at.astype(np.float64), rtol=1e-5, atol=1e-5)
+
+
+@pytest.mark.parametrize("dim, degree", [(2, 0), (2, 5), (2, 14), (3, 1), (3, 8), (3, 12)])
+def test_the_compiled_design_matrix_is_the_array_one_to_the_bit(dim, degree, rng):
+    # The same products in the same order (powers from 1 by repeated multiplication, factors in
+    # axis order), and products alone leave the compiler nothing to reassociate or fuse: equal
+    # bits on any machine, NaN, infinities, signed zeros and overflow included.
+    n = basis._COMPILED_ROWS + 37
+    pts = rng.normal(size=(n, dim)) * np.exp(rng.uniform(-30, 30, size=(n, 1)))
+    pts[:6] = [[np.nan] * dim, [np.inf] * dim, [-np.inf] * dim, [-0.0] * dim, [0.0] * dim, [1e200] * dim]
+    pts = np.asfortranarray(pts)  # not C-contiguous: the kernel gets a copy
+    exps = basis.exponents(dim, degree)
+    compiled = basis.monomials(pts, exps)
+    with np.errstate(over="ignore", invalid="ignore"):  # numpy warns of the overflow; the kernel is silent
+        array = basis.monomials(pts, exps, basis.power_table(pts, degree))  # the array version
+    assert compiled.shape == (n, len(exps)) and compiled.dtype == np.float64
+    assert np.array_equal(compiled.view(np.uint64), array.view(np.uint64))
+    # and by hand: x² y at (2, 3) is 12
+    if degree >= 3:
+        k = [tuple(e) for e in exps.tolist()].index((2, 1) + (0,) * (dim - 2))
+        assert basis.monomials(np.tile([[2.0, 3.0, 5.0][:dim]], (n, 1)), exps)[0, k] == 12.0
