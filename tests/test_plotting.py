@@ -575,3 +575,26 @@ def test_plot_points_takes_outliers_as_a_mask_or_indices():
     with pytest.raises(InvalidInputError, match="outliers: expected a mask"):
         plot_points(pts, ax, outliers=[0.5])
     close(ax)
+
+
+def test_the_panels_share_one_measurement_of_the_data(monkeypatch):
+    # Every degree's spurious pieces are judged against the same data: its samples and k-d tree
+    # are built once for the figure, not once per panel (the same flags either way).
+    import ipfit
+    from ipfit.viz.plotting import plot_result
+    from ipfit.zeroset import quality as quality_module
+
+    boot = ipfit.load("boot")
+    result = ipfit.fit_adaptive(boot.points, boot.normals, rng=0, max_degree=6)
+    assert len(result.degrees) >= 2
+    built = []
+    original = quality_module.data_target
+
+    def counted(*args, **kwargs):
+        built.append(1)
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(quality_module, "data_target", counted)
+    fig = plot_result(result, boot.points)
+    assert len(built) == 1
+    assert sum(ax.name == "rectilinear" and bool(ax.lines) for ax in fig.axes) >= len(result.degrees)

@@ -27,6 +27,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .._utils.validation import as_faces, as_points, check_choice, check_int, check_positive, error
+from ..cloud import as_cloud
 from ..degree.results import ResultView, result_view
 from ..polynomial import ImplicitPolynomial
 from ..zeroset.extract import ZeroSet, data_bounds, default_bounds, extract_zero_set
@@ -658,6 +659,9 @@ def plot_result(result, points: ArrayLike | None = None, path: str | os.PathLike
     if dim == 3:
         import mpl_toolkits.mplot3d  # noqa: F401  registers the 3d projection
     ordered = dim == 2 and kept is not None and looks_like_contour(kept)
+    # one cloud for every panel: the data's side of the measurement (its samples, k-d tree and
+    # topology) is built once, not once per degree
+    judged = None if kept is None else as_cloud(kept, faces=kept_faces, min_points=2)
     for index, (label, kind, payload) in enumerate(panels):
         letter = f"({chr(ord('a') + index)}) " if 1 < len(panels) and index < 26 else ""
         ax = fig.add_subplot(nrows, ncols, index + 1, projection="3d" if dim == 3 and kind == "fit" else None)
@@ -671,8 +675,8 @@ def plot_result(result, points: ArrayLike | None = None, path: str | os.PathLike
                 else:
                     faint = ~cast(NDArray[np.bool_], trim_mask(zs, pts, trim, faces=face_array))
             flags = None
-            if mark_spurious and kept is not None and not zs.is_empty:
-                flags = spurious_components(zs, kept, faces=kept_faces, ordered_contour=ordered)
+            if mark_spurious and judged is not None and not zs.is_empty:
+                flags = spurious_components(zs, judged, ordered_contour=ordered)
                 if flags.any():
                     label += f"\n{int(flags.sum())} spurious piece{'s' if flags.sum() > 1 else ''} (red)"
             mismatch = _topology_note(view_, payload)
