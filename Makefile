@@ -46,6 +46,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_zeroset.py
 	$(BIN)/python benchmarks/bench_farfield.py
 	$(BIN)/python benchmarks/bench_polish.py
+	$(BIN)/python benchmarks/bench_readers.py
 
 # The recommended vs the paper's pipeline, `ipfit fit bunny`, and the scaling table up to a
 # million points: docs/performance.md and docs/spurious.md (about half an hour on 2 cores).
