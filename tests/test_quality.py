@@ -90,6 +90,32 @@ def test_extra_sphere_is_spurious_in_3d():
     assert q.n_components == 2 and q.n_spurious == 1 and q.recall == 1.0
 
 
+@pytest.mark.parametrize("case", ["contour", "bare 2D", "mesh", "bare 3D"])
+def test_spurious_flags_alone_are_the_full_measurements(case):
+    # spurious_components measures only the zero set's side; its flags are the full measurement's
+    from ipfit.zeroset.quality import _measure, spurious_components
+
+    if case in ("contour", "bare 2D"):
+        shape = synthetic.circle(200)
+        poly = product(shape.polynomial, synthetic.circle(radius=0.1, center=(1.3, 1.3)).polynomial)
+        data, options = shape.points, {"ordered_contour": case == "contour"}
+    else:
+        import trimesh
+
+        mesh = trimesh.creation.icosphere(subdivisions=3)
+        poly = product(synthetic.sphere(10).polynomial,
+                       synthetic.sphere(radius=0.15, center=(1.25, 1.25, 1.25)).polynomial)
+        vertices = np.asarray(mesh.vertices)
+        data = ipfit.Cloud(vertices, faces=np.asarray(mesh.faces)) if case == "mesh" else vertices
+        options = {}
+    zs = extract_zero_set(poly, points=shape.points if case in ("contour", "bare 2D") else vertices)
+    flags = spurious_components(zs, data, **options)
+    assert flags.tolist() == _measure(zs, data, **options)[1].tolist()
+    assert flags.sum() == 1 and len(flags) == zs.n_components == 2
+    with pytest.raises(InvalidInputError, match="points to match the zero set"):
+        spurious_components(zs, np.zeros((5, 5 - zs.dim)) + np.arange(5)[:, None])
+
+
 def test_zero_set_leaving_the_box_is_not_closed():
     shape = synthetic.sphere(500)
     hyperboloid = synthetic.from_terms(3, 2, {(2, 0, 0): 1, (0, 2, 0): 1, (0, 0, 2): -1, (0, 0, 0): -1})

@@ -248,7 +248,15 @@ def spurious_components(zero_set: ZeroSet, points: ArrayLike | Cloud, **options)
     """
     if not isinstance(zero_set, ZeroSet):
         raise error("zero_set", "a ZeroSet (ipfit.extract_zero_set)", type(zero_set).__name__)
-    return _measure(zero_set, points, **options)[1]
+    options, cloud = _options(points, options)
+    if zero_set.dim != cloud.dim:
+        raise error("points", f"{zero_set.dim}D points to match the zero set", f"{cloud.dim}D points")
+    # Only the zero set's side of a measurement: the data's distances to it do not flag a piece.
+    tau, spacing, max_samples, ref, _ = _data_side(cloud, **options)
+    if zero_set.is_empty:
+        return np.zeros(0, dtype=bool)
+    samples = zero_set.sample(spacing, max_samples=max_samples)
+    return _nearest_per_component(zero_set, samples, ref.distance(samples.points)) > tau
 
 
 def stray_samples(model: ImplicitPolynomial | ZeroSet, points: ArrayLike | Cloud, *, most: int = 400,
@@ -295,11 +303,7 @@ def _measure(model, points, *, details: bool = False, **options):
     distances to the shape, τ, the data points' distances to the zero set). A cloud keeps the
     last few measurements of polynomials, so that a repair's stray samples reuse the measurement
     that judged its degree."""
-    unknown = set(options) - set(_MEASURE_DEFAULTS)
-    if unknown:
-        raise TypeError(f"unexpected keyword argument {sorted(unknown)[0]!r}")
-    options = {**_MEASURE_DEFAULTS, **options, "ordered_contour": bool(options.get("ordered_contour"))}
-    cloud = as_cloud(points, faces=options.pop("faces"), min_points=2)
+    options, cloud = _options(points, options)
     if not isinstance(model, ImplicitPolynomial):
         found = _measure_now(model, cloud, **options)
     else:
@@ -310,6 +314,46 @@ def _measure(model, points, *, details: bool = False, **options):
                               keep=_MEASUREMENTS_KEPT)
     q, flags, samples, d_zero, tau, d_data = found
     return (None, flags, samples, d_zero, tau, d_data) if details else (q, flags)
+
+
+def _options(points, options: dict) -> tuple[dict, Cloud]:
+    """The measurement's options with their defaults (faces taken out), and the data as a cloud."""
+    unknown = set(options) - set(_MEASURE_DEFAULTS)
+    if unknown:
+        raise TypeError(f"unexpected keyword argument {sorted(unknown)[0]!r}")
+    options = {**_MEASURE_DEFAULTS, **options, "ordered_contour": bool(options.get("ordered_contour"))}
+    return options, as_cloud(points, faces=options.pop("faces"), min_points=2)
+
+
+def _data_side(cloud: Cloud, *, ordered_contour, tau, tau_fraction, spacing, max_samples, **_extraction):
+    """τ, the sample spacing and cap, and the data's shape as a distance target with its name
+    (kept on ``cloud``: the same for every degree and repair round)."""
+    diagonal = float(np.linalg.norm(np.ptp(cloud.points, axis=0)))
+    if tau is None:
+        if not 0 < diagonal < np.inf:  # tau defaults to a fraction of the diagonal: none to take
+            raise error("points", "points whose box has a diagonal > 0 and finite in float64",
+                        f"a diagonal of {diagonal:.3g}",
+                        "Pass the tolerance tau= (ipfit score --tau), or other points.")
+        tau = check_positive(tau_fraction, "tau_fraction") * diagonal
+    tau = check_positive(tau, "tau")
+    # Samples only find candidate elements (distances are exact to those) and weigh the zero
+    # set for precision. At τ the zero set keeps one sample per element of the extraction
+    # (shorter than τ at the default resolutions). Sampling at τ/3, as before, made about 4x
+    # as many samples of the zero set in 3D and 8x as many of the data's faces, for F, P and R
+    # within 0.002 and identical spurious counts on the bundled datasets (bench_quality.py).
+    spacing = tau if spacing is None else check_positive(spacing, "spacing")
+    max_samples = check_int(max_samples, "max_samples", minimum=1000)
+    ref, reference = cloud.derived("data_target", (bool(ordered_contour), spacing, max_samples, tau),
+                                   lambda: data_target(cloud.points, cloud.faces, ordered_contour, spacing,
+                                                       max_samples, tau))
+    return tau, spacing, max_samples, ref, reference
+
+
+def _nearest_per_component(zs: ZeroSet, samples, d_zero: NDArray) -> NDArray[np.float64]:
+    """Each component's smallest sample distance to the data's shape (inf for a piece without samples)."""
+    nearest = np.full(zs.n_components, np.inf)
+    np.minimum.at(nearest, samples.labels, d_zero)
+    return nearest
 
 
 # A degree and its repair rounds measure a few polynomials, each kept with its zero set's samples.
@@ -333,25 +377,9 @@ def _measure_now(model, cloud: Cloud, *, ordered_contour, tau, tau_fraction, bou
         zs = model
     else:
         raise error("model", "an ImplicitPolynomial or a ZeroSet", type(model).__name__)
-    diagonal = float(np.linalg.norm(np.ptp(pts, axis=0)))
-    if tau is None:
-        if not 0 < diagonal < np.inf:  # tau defaults to a fraction of the diagonal: none to take
-            raise error("points", "points whose box has a diagonal > 0 and finite in float64",
-                        f"a diagonal of {diagonal:.3g}",
-                        "Pass the tolerance tau= (ipfit score --tau), or other points.")
-        tau = check_positive(tau_fraction, "tau_fraction") * diagonal
-    tau = check_positive(tau, "tau")
-    # Samples only find candidate elements (distances are exact to those) and weigh the zero
-    # set for precision. At τ the zero set keeps one sample per element of the extraction
-    # (shorter than τ at the default resolutions). Sampling at τ/3, as before, made about 4x
-    # as many samples of the zero set in 3D and 8x as many of the data's faces, for F, P and R
-    # within 0.002 and identical spurious counts on the bundled datasets (bench_quality.py).
-    spacing = tau if spacing is None else check_positive(spacing, "spacing")
-    max_samples = check_int(max_samples, "max_samples", minimum=1000)
-
-    # The data's side (its samples and k-d tree) is the same for every degree and repair round.
-    ref, reference = cloud.derived("data_target", (bool(ordered_contour), spacing, max_samples, tau),
-                                   lambda: data_target(pts, cloud.faces, ordered_contour, spacing, max_samples, tau))
+    tau, spacing, max_samples, ref, reference = _data_side(cloud, ordered_contour=ordered_contour, tau=tau,
+                                                           tau_fraction=tau_fraction, spacing=spacing,
+                                                           max_samples=max_samples)
 
     n_components = zs.n_components
     shape = data_topology(cloud, bool(ordered_contour))
@@ -384,8 +412,7 @@ def _measure_now(model, cloud: Cloud, *, ordered_contour, tau, tau_fraction, bou
         zero_to_data = float(d_zero.mean())
     data_to_zero = float(d_data.mean())
     f_score = 0.0 if precision + recall == 0 else 2 * precision * recall / (precision + recall)
-    nearest = np.full(n_components, np.inf)
-    np.minimum.at(nearest, samples.labels, d_zero)
+    nearest = _nearest_per_component(zs, samples, d_zero)
     flags = nearest > tau
     spurious = _spurious_components(samples, nearest, tau)
     return (Quality(recall=recall, precision=precision, f_score=float(f_score),
