@@ -546,3 +546,22 @@ def test_truncated_real_files_raise_only_read_error(tmp_path, real_files, choice
     path = tmp_path / f"cut_{name}"
     path.write_bytes(raw[: int(fraction * (len(raw) - 1))])
     _only_read_error(path)
+
+
+def test_ascii_plys_with_empty_or_odd_elements_read_as_plyfile_reads_them(tmp_path):
+    from ipfit.io.meshfiles import _ascii_ply, _plyfile_elements
+
+    header = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+    body = "0 0 0\n1 0 0\n0 1 0\n"
+    for extra, expect_fast in [("element face 0\nproperty list uchar int vertex_indices\n", True),  # no faces
+                               ("element edge 0\n", False),  # an element without properties
+                               ("element face 1\nproperty list uchar float vertex_indices\n", False)]:  # float indices
+        raw = (header + extra + "end_header\n" + body + ("3 0 1 2\n" if "face 1" in extra else "")).encode()
+        fast = _ascii_ply(raw)
+        assert (fast is not None) == expect_fast, extra
+        if fast is not None:
+            slow = _plyfile_elements(tmp_path / "x.ply", raw)
+            assert fast[0] == slow[0] and fast[3] is None and slow[3] is None
+            assert np.array_equal(fast[1]["x"], slow[1]["x"])
+    repeated = (header.replace("property float z", "property float x") + "end_header\n" + body).encode()
+    assert _ascii_ply(repeated) is None  # plyfile decides what a repeated property means

@@ -163,18 +163,20 @@ def _ascii_ply(raw: bytes) -> _Elements | None:
     for name, count, props in elements:
         rows = lines[at:at + count]
         at += count
-        if len(rows) < count or not all(row.strip() for row in rows):  # numpy's reader skips blank lines
+        if not props or len(rows) < count or not all(row.strip() for row in rows):  # numpy skips blank lines
             return None
         text = _io.BytesIO(b"\n".join(rows))
         scalar = all(length is None for _, _, length in props)
+        if not scalar and len(props) > 1:
+            return None
         try:
             if scalar:
-                data = np.loadtxt(text, dtype=[(p, t) for p, t, _ in props], ndmin=1, comments=None)
-            elif len(props) == 1:
-                table = np.loadtxt(text, dtype=np.int64, ndmin=2, comments=None)
+                dtype = np.dtype([(p, t) for p, t, _ in props])
+                data = np.loadtxt(text, dtype=dtype, ndmin=1, comments=None) if count else np.empty(0, dtype)
             else:
-                return None
-        except ValueError:
+                table = (np.loadtxt(text, dtype=np.int64, ndmin=2, comments=None) if count
+                         else np.empty((0, 1), np.int64))
+        except (ValueError, TypeError):  # a malformed value or a repeated property name: plyfile says which
             return None
         if not scalar:
             prop, value_type, length_type = props[0]
