@@ -47,8 +47,10 @@ DEFAULT_CLEARANCE = 3.0
 #: The zero set counts as "close" to a sample when its Taubin distance there is below this
 #: fraction of the sample's true distance to the data. Far from a shape, a degree-g polynomial's
 #: Taubin distance is about r/g while the true distance is about r, so the fraction must stay
-#: below 1/g for a clean fit not to be penalised: 1/8 suits the degrees up to 8 used here, and
-#: still sees small loops between grid nodes (1/16 missed one inside the boot at degree 8).
+#: below 1/g for a clean fit not to be penalised: 1/8 was chosen when degrees went up to 8, and
+#: still sees small loops between grid nodes (1/16 missed one inside the boot at degree 8). The
+#: capture rule now goes to 14 in 2D and 12 in 3D, where a clean fit's far samples may pay a
+#: little; not re-measured there.
 DEFAULT_RATIO = 1.0 / 8.0
 #: Candidate grid nodes along the longest side for the objective term's samples: fine enough
 #: that the chosen samples sit close to where they are wanted (the grid only proposes places;
