@@ -427,7 +427,7 @@ def _solutions(template, pool, pool_fun, kept, obj64, starts: StartFits):
         if m.distance > pool_fun[i] + 1e-12 * max(1.0, abs(pool_fun[i])):
             # The raw gradient agreement in rare cases disagrees with the mean cosine: keep
             # the orientation that was optimised.
-            poly = template.with_coefficients(pool[i] / np.linalg.norm(pool[i]))
+            poly = template.with_coefficients(coef)
             m = obj64.measures(poly.coefficients)[0]
         if rank == 0 and len(starts) and m.distance > starts.distances[0]:
             # Only rounding (renormalisation, summation order) can put the winner above the

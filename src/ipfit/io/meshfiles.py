@@ -23,8 +23,10 @@ from ._base import IPFIT_2D, Raw, optional_module, quiet_logger, short
 
 __all__ = ["read_ply", "read_obj", "read_off", "read_stl", "read_scene"]
 
-_PLY_SIZES = {"char": 1, "int8": 1, "uchar": 1, "uint8": 1, "short": 2, "int16": 2, "ushort": 2, "uint16": 2,
-              "int": 4, "int32": 4, "uint": 4, "uint32": 4, "float": 4, "float32": 4, "double": 8, "float64": 8}
+_PLY_TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2", "int16": "i2",
+              "ushort": "u2", "uint16": "u2", "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4",
+              "float": "f4", "float32": "f4", "double": "f8", "float64": "f8"}
+_PLY_SIZES = {name: np.dtype(kind).itemsize for name, kind in _PLY_TYPES.items()}
 _NORMAL_FIELDS = (("nx", "ny", "nz"), ("normal_x", "normal_y", "normal_z"))
 
 
@@ -111,11 +113,6 @@ def _plyfile_elements(path: Path, raw: bytes) -> _Elements:
             sizes = np.fromiter(map(len, lists), dtype=np.intp, count=len(lists))
             polygons = sizes, (np.concatenate(lists) if sizes.sum() else np.empty(0, np.int64))
     return names, vertex, list(ply.comments), polygons
-
-
-_PLY_TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2", "int16": "i2",
-              "ushort": "u2", "uint16": "u2", "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4",
-              "float": "f4", "float32": "f4", "double": "f8", "float64": "f8"}
 
 
 def _ascii_ply(raw: bytes) -> _Elements | None:
