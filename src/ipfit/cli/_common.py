@@ -355,7 +355,7 @@ def cli_names(names: dict[str, str]):
 
 #: The compiled kernels a fit runs (``render`` adds the ray kernels).
 FIT_KERNELS = ("ipfit._basis_kernels", "ipfit.fitting._objective_kernels", "ipfit.optimize._kernels",
-               "ipfit.geometry._distance_kernels")
+               "ipfit.geometry._distance_kernels", "ipfit.robust._local_kernels")
 
 
 def cold_kernels(modules: Sequence[str] = FIT_KERNELS) -> list[str]:

@@ -16,13 +16,15 @@ along the tangent of 4k points).
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
+from itertools import pairwise
 from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
-from ..normals.local import blocks
+from .._utils.threads import default_threads
 
 # The frame's neighbourhood: up to this many times k reference points, those within the
 # caller's reach (and always the k nearest).
@@ -38,6 +40,8 @@ _LEVERAGE_CAP = 1.0
 # Queries whose frames are held at once (see fit_local): 4k = 48 neighbours of 2^16 queries
 # are 50 MB of distances and indices.
 _QUERIES = 1 << 16
+# The fits of fewer queries than this are not worth a thread of their own.
+_MIN_PART = 4096
 
 
 class LocalFit(NamedTuple):
@@ -59,15 +63,6 @@ class LocalFit(NamedTuple):
 def n_terms(dim: int) -> int:
     """Coefficients of the local quadric: 3 in 2D, 6 in 3D."""
     return 3 if dim == 2 else 6
-
-
-def _design(u: NDArray) -> NDArray[np.float64]:
-    """Quadratic monomials of tangent coordinates ``u`` (..., D-1), constant first."""
-    if u.shape[-1] == 1:
-        x = u[..., 0]
-        return np.stack([np.ones_like(x), x, x * x], axis=-1)
-    x, y = u[..., 0], u[..., 1]
-    return np.stack([np.ones_like(x), x, y, x * x, x * y, y * y], axis=-1)
 
 
 def _neighbourhoods(tree: cKDTree, query: NDArray, own: NDArray[np.intp], width: int,
@@ -118,78 +113,41 @@ def fit_local(ref: NDArray, query: NDArray, own: NDArray[np.intp], k: int, reach
     reach : radius of the frame's neighbourhood, or None for the widest (``WIDE * k`` points).
         The k nearest are always in it, so a radius below their distance (0) keeps only them:
         on clean data that keeps the two sides of a thin part apart.
-    workers : threads for the neighbour search
+    workers : threads for the neighbour search and the fits: -1 for all cores (at most
+        ``OMP_NUM_THREADS`` when set), or a positive number
     """
     n = len(query)
     tree = cKDTree(ref)
     residual, offset, extent = np.empty(n), np.empty(n), np.empty(n)
     chosen = np.empty((n, k), dtype=np.intp)
     least = np.inf
+    threads = default_threads() if workers == -1 else workers
     # The frames are found a slice of queries at a time: at 4k neighbours each, a million
     # queries' distances and indices at once are 768 MB (it was a fit's peak memory).
     for part in range(0, n, _QUERIES):
         at = slice(part, min(part + _QUERIES, n))
         dist, wide, nearest = _frames(tree, query[at], own[at], k, reach, workers)
         least = min(least, nearest)
-        _fit_frames(ref, query[at], dist, wide, k, residual[at], offset[at], extent[at], chosen[at])
+        _fit_frames(ref, query[at], dist, wide, k, residual[at], offset[at], extent[at], chosen[at], threads)
     return LocalFit(residual, offset, chosen, extent, least)
 
 
 def _fit_frames(ref: NDArray, query: NDArray, dist: NDArray, wide: NDArray[np.intp], k: int,
-                residual: NDArray, offset: NDArray, extent: NDArray, chosen: NDArray[np.intp]) -> None:
+                residual: NDArray, offset: NDArray, extent: NDArray, chosen: NDArray[np.intp], threads: int) -> None:
     """The quadric fits of ``query``'s frames (``dist``, ``wide`` from :func:`_frames`), written
-    into the views ``residual``, ``offset``, ``extent`` and ``chosen``."""
-    for rows in blocks(len(query), 4 * wide.shape[1]):
-        inside = np.isfinite(dist[rows])
-        rel = ref[wide[rows]] - query[rows][:, None, :]
-        # the frame: PCA of the points within reach, about their centroid
-        w = inside.astype(float)[..., None]
-        centre = (w * rel).sum(axis=1) / w.sum(axis=1)
-        spread = (rel - centre[:, None, :]) * w
-        _, vectors = np.linalg.eigh(np.matmul(spread.transpose(0, 2, 1), spread))
-        u = np.matmul(rel, vectors[:, :, 1:])  # tangent coordinates
-        h = np.matmul(rel, vectors[:, :, 0:1])[..., 0]  # height along the normal
-        along = np.where(inside, np.einsum("mkt,mkt->mk", u, u), np.inf)
-        pick = np.argpartition(along, k - 1, axis=1)[:, :k] if along.shape[1] > k else np.broadcast_to(
-            np.arange(k), along.shape)
-        u, h = np.take_along_axis(u, pick[..., None], 1), np.take_along_axis(h, pick, 1)
-        chosen[rows] = np.take_along_axis(wide[rows], pick, 1)
-        size = np.sqrt(np.take_along_axis(along, pick, 1).max(axis=1))
-        size = np.where(size > 0, size, 1.0)
-        value, leverage = _irls(_design(u / size[:, None, None]), h)
-        residual[rows] = np.abs(value) / np.sqrt(1.0 + np.minimum(leverage, _LEVERAGE_CAP))
-        mean = u.mean(axis=1)
-        rms = np.sqrt(np.einsum("mkt,mkt->m", u - mean[:, None], u - mean[:, None]) / k)
-        extent[rows] = rms
-        with np.errstate(divide="ignore", invalid="ignore"):
-            offset[rows] = np.where(rms > 0, np.sqrt(np.einsum("mt,mt->m", mean, mean)) / rms, 0.0)
+    into the views ``residual``, ``offset``, ``extent`` and ``chosen``: the compiled kernel over
+    ``threads`` even parts of the queries (it releases the GIL)."""
+    from ._local_kernels import quadric_frames  # here: reading a file loads no numba
 
+    def run(at: slice) -> None:
+        quadric_frames(ref, query[at], dist[at], wide[at], k, _TUKEY, _IRLS_STEPS, _LEVERAGE_CAP,
+                       residual[at], offset[at], extent[at], chosen[at])
 
-def _solve(design: NDArray, h: NDArray, w: NDArray, leverage: bool = False):
-    """Weighted least squares per row: the coefficients, and with ``leverage`` that of a
-    unit-weight point at u = 0 (inv(normal)[0, 0])."""
-    m, _, p = design.shape
-    weighted = design * w[..., None]
-    normal = np.matmul(weighted.transpose(0, 2, 1), design) + 1e-9 * np.eye(p)  # u is in [-1, 1]
-    rhs = np.matmul(weighted.transpose(0, 2, 1), h[..., None])
-    if not leverage:
-        return np.linalg.solve(normal, rhs)[:, :, 0], None
-    e0 = np.zeros((m, p, 1))
-    e0[:, 0, 0] = 1.0
-    solution = np.linalg.solve(normal, np.concatenate([rhs, e0], axis=2))
-    return solution[:, :, 0], solution[:, 0, 1]
-
-
-def _irls(design: NDArray, h: NDArray) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Tukey-weighted fit of ``h`` per row: its value at u = 0 (the query) and that point's leverage."""
-    w = np.ones(h.shape)
-    for _ in range(_IRLS_STEPS):
-        beta, _ = _solve(design, h, w)
-        r = h - np.einsum("mkp,mp->mk", design, beta)
-        scale = 1.4826 * np.median(np.abs(r), axis=1)
-        floor = 1e-12 * np.abs(h).max(axis=1) + 1e-300  # exact data: keep every point
-        t = r / (_TUKEY * np.maximum(scale, floor))[:, None]
-        w = np.where(np.abs(t) < 1.0, (1.0 - t * t) ** 2, 0.0)
-    beta, leverage = _solve(design, h, w, leverage=True)
-    return beta[:, 0], leverage
-
+    n = len(query)
+    parts = max(1, min(threads, n // _MIN_PART))
+    if parts == 1:
+        run(slice(0, n))
+        return
+    edges = np.linspace(0, n, parts + 1).astype(int)
+    with ThreadPoolExecutor(parts) as pool:
+        list(pool.map(run, [slice(a, b) for a, b in pairwise(edges)]))
