@@ -219,6 +219,25 @@ def test_progress_shows_each_stage_when_piped(tmp_path):
     assert quiet.returncode == 0 and quiet.stderr == "" and quiet.stdout == ""
 
 
+def test_a_degrees_line_counts_its_repair_polishes_and_the_other_solutions_measured():
+    import io
+
+    from ipfit.cli._progress import Progress
+
+    stream = io.StringIO()
+    progress = Progress("lines", stream=stream)
+    done = {"event": "degree_done", "degree": 6, "distance": 0.01, "smoothness": 0.9, "dissimilarity": 0.02,
+            "seconds": 1.5, "quality": {"f_score": 0.744, "precision": 0.8, "recall": 0.7}}
+    progress({**done, "cleanup": [{"target": "spurious components"}, {"target": "another solution"},
+                                  {"target": "another solution"}]})
+    progress({**done, "degree": 8, "cleanup": [{"target": "another solution"}]})
+    progress({**done, "degree": 10})
+    first, second, third = stream.getvalue().splitlines()
+    assert first.endswith("recall 0.700), 1 repair polish(es), 2 other solution(s) of the search measured (1.5 s)")
+    assert second.endswith("recall 0.700), 1 other solution(s) of the search measured (1.5 s)")
+    assert third.endswith("recall 0.700) (1.5 s)")
+
+
 def test_progress_bar_on_a_terminal(tmp_path):
     # A real pseudo-terminal: rich draws its bar there, with the stage and the quantity minimised.
     import pty

@@ -560,3 +560,52 @@ def test_a_degree_fitted_whole_gets_no_missing_surface_round():
     def refit(*args):
         raise AssertionError("no refit without missed points")
     assert fill_missing(entry, refit, RECOMMENDED, cloud, False, CAPTURE) is entry
+
+
+def _product(a: dict, b: dict) -> dict:
+    """The terms of the product of two polynomials given by their terms (2D exponents)."""
+    out: dict = {}
+    for (i, j), c in a.items():
+        for (k, m), d in b.items():
+            out[(i + k, j + m)] = out.get((i + k, j + m), 0.0) + c * d
+    return out
+
+
+def test_a_degree_left_not_clean_takes_the_best_clean_one_of_the_searchs_other_solutions():
+    # The data: a circle. The degree's fit (the search's first solution) has a second loop inside
+    # the circle, far from the data (not clean); among the search's other solutions, one is the
+    # circle with an oval that never vanishes (clean, F 1), one an ellipse through the circle's
+    # poles only (clean, lower F) and one has a loop again. The circle comes back, every other
+    # solution is recorded, and the degree keeps its method name, evaluations and the time
+    # of the measurements.
+    from ipfit.degree.adaptive import _measured_fit
+    from ipfit.degree.repair import other_solutions
+    from ipfit.fitting.objective import DEFAULT_DELTA
+    from ipfit.fitting.options import RECOMMENDED
+
+    shape = synthetic.circle(400)
+    cloud = ipfit.Cloud(shape.points, shape.normals)
+    unit = {(2, 0): 1.0, (0, 2): 1.0, (0, 0): -1.0}
+    loop = synthetic.from_terms(2, 4, _product(unit, {(2, 0): 1.0, (0, 2): 1.0, (0, 0): -0.16}))
+    loop2 = synthetic.from_terms(2, 4, _product(unit, {(2, 0): 1.0, (0, 2): 1.0, (0, 0): -0.25}))
+    circle = synthetic.from_terms(2, 4, _product(unit, {(2, 0): 1.0, (0, 2): 1.0, (0, 0): 1.0}))
+    ellipse = synthetic.from_terms(2, 4, _product({(2, 0): 0.6, (0, 2): 1.0, (0, 0): -1.0},
+                                                  {(2, 0): 1.0, (0, 2): 1.0, (0, 0): 1.0}))
+    entry = dataclasses.replace(_sphere_entry(cloud, loop), nfev=321)
+    assert not CAPTURE.is_clean(entry.quality)
+
+    def measure(poly):
+        return _measured_fit(entry, poly, cloud, cloud.unit_normals, DEFAULT_DELTA, False)
+
+    out = other_solutions(entry, (loop, ellipse, loop2, circle), measure, RECOMMENDED, CAPTURE)
+    assert CAPTURE.is_clean(out.quality) and out.quality.f_score == pytest.approx(1.0, abs=1e-3)
+    np.testing.assert_allclose(out.polynomial.coefficients, circle.coefficients)
+    assert [(a["target"], a["solution"], a["clean"]) for a in out.cleanup] == [
+        ("another solution", 1, True), ("another solution", 2, False), ("another solution", 3, True)]
+    assert out.cleanup[0]["f_score"] < out.cleanup[2]["f_score"]                  # the ellipse, below the circle
+    assert out.nfev == 321 and out.polynomial.method == entry.polynomial.method
+    assert out.seconds == pytest.approx(entry.seconds + sum(a["seconds"] for a in out.cleanup))
+    # none clean: the fit stays, the solutions measured are recorded; one solution: nothing to try
+    kept = other_solutions(entry, (loop, loop2), measure, RECOMMENDED, CAPTURE)
+    assert kept.polynomial is entry.polynomial and [a["solution"] for a in kept.cleanup] == [1]
+    assert other_solutions(entry, (loop,), measure, RECOMMENDED, CAPTURE) is entry

@@ -220,9 +220,12 @@ SCHEMA: tuple[Key, ...] = (
     _k("degrees[].message", "string", "how the method ended (each stage)"),
     _k("degrees[].reason", "string", "why the degree was selected, rejected or not needed, in one line"),
     _k("degrees[].cleanup", "list of objects", "refits with stronger far-field terms of a degree that was not clean "
-       "or not precise, or that missed part of the data"),
+       "or not precise, or that missed part of the data; then, if still not clean, the search's other solutions "
+       "measured"),
     _k("degrees[].cleanup[].target", "string", '"spurious components", "topology", "precision" or "missing surface": '
-       "what the refit removed or fixed"),
+       'what the refit removed or fixed; "another solution": one of the search\'s other distinct solutions'),
+    _k("degrees[].cleanup[].solution", "integer >= 1", 'target "another solution": its rank among the search\'s '
+       "distinct solutions (0 is the one fitted)"),
     _k("degrees[].cleanup[].far_term_weight", "number", "the far-field term weight of that refit"),
     _k("degrees[].cleanup[].precision", "number", "its precision"),
     _k("degrees[].cleanup[].clean", "boolean", "the refit's zero set is clean"),

@@ -79,7 +79,11 @@ class Progress:
             q = event.get("quality")
             shape = (f", F-score {q['f_score']:.3f} (precision {q['precision']:.3f}, recall {q['recall']:.3f})"
                      if q else "")
-            repairs = f", {len(event['cleanup'])} repair polish(es)" if event.get("cleanup") else ""
+            attempts = event.get("cleanup") or []
+            polishes = sum(a["target"] != "another solution" for a in attempts)
+            others = len(attempts) - polishes
+            repairs = (f", {polishes} repair polish(es)" if polishes else "") + \
+                (f", {others} other solution(s) of the search measured" if others else "")
             self._line(f"degree {event['degree']}: distance {event['distance']:.5f}, smoothness "
                        f"{event['smoothness']:.4f}, dissimilarity {event['dissimilarity']:.5f}{shape}{repairs} "
                        f"({event['seconds']:.1f} s)")

@@ -54,7 +54,7 @@ from ..polynomial import ImplicitPolynomial, Normalization
 from ..robust import OutlierScore, check_outliers, score_outliers
 from ..zeroset.quality import Quality, looks_like_contour, quality
 from ..zeroset.topology import Topology, describe_mismatch
-from .repair import fill_missing, repair
+from .repair import fill_missing, other_solutions, repair
 from .rules import (
     RULES,
     TOLERANCE,
@@ -84,7 +84,9 @@ class DegreeResult(Result):
     ----------
     x, fun : the coefficients (normalised coordinates) and the value the fixed-degree method
         minimised at them (SciPy's meaning: the paper's distance plus any far-field term; the
-        paper's distance itself for a linear or custom fit, which minimise nothing of ours).
+        paper's distance itself for a linear or custom fit, which minimise nothing of ours, and
+        for another of the search's solutions put in place of a fit its repair left not clean,
+        :func:`ipfit.degree.repair.other_solutions`).
     distance : the paper's distance at ``x`` (Eq. 4), without any extra term.
     nit, nfev : the fixed-degree method's iterations and objective evaluations (0 for a linear fit).
     success, message : whether the method reached a finite fit, and how it ended.
@@ -448,6 +450,12 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
                 entry = repair(entry, refit, fitter.options, work, ordered_contour, rule, best_f)
             if measured and fitter.options is not None and rule.fills_missing(entry, best_f):
                 entry = fill_missing(entry, refit, fitter.options, work, ordered_contour, rule)
+            if measured and fitter.options is not None and not rule.is_clean(entry.quality):
+
+                def measure(poly, fitted=before_repair):
+                    return _measured_fit(fitted, poly, work, work_unit, delta, ordered_contour)
+
+                entry = other_solutions(entry, before_repair.solutions, measure, fitter.options, rule)
             unrepaired.append((before_repair, refit, fitter.previous))
         except KeyboardInterrupt:
             if not results:
@@ -650,6 +658,18 @@ def _top_degree(n_points: int, dim: int, min_degree: int, max_degree: int | None
                         "Lower the maximum degree or pass more points.")
         top = largest_possible
     return top
+
+
+def _measured_fit(fitted: DegreeResult, poly: ImplicitPolynomial, cloud: Cloud, unit, delta, ordered_contour
+                  ) -> DegreeResult:
+    """``fitted`` (a degree's fit) with ``poly`` (another solution of the same search) in its
+    place, measured as :func:`_fit_degree` measures a fit; its seconds are the measurement's."""
+    t0 = time.perf_counter()
+    m = compute_measures(poly, cloud.points, unit, delta=delta)
+    poly = poly.with_coefficients(poly.coefficients, measures=m.to_dict())
+    q = quality(poly, cloud, ordered_contour=ordered_contour)
+    return dataclasses.replace(fitted, x=poly.coefficients, fun=float(m.distance), polynomial=poly, measures=m,
+                               quality=q, seconds=time.perf_counter() - t0, cleanup=())
 
 
 def _fit_degree(fitter: _Fitter, cloud: Cloud, unit, degree, delta, measured: bool, ordered_contour, *, options=None,
