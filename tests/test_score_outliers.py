@@ -90,15 +90,18 @@ def test_a_bad_setting_is_one_line(bad):
 
 @pytest.mark.parametrize("noise", [0.0, 0.01])
 def test_a_big_cloud_scored_a_slice_of_queries_at_a_time_as_all_at_once(seed, noise, monkeypatch):
-    # A million points' frames are found 2^16 queries at a time (bounded memory); slices of 97
-    # must give the scores of a single pass, on clean and on noisy data (wide frames).
+    # A million points' frames are found, and their roughness taken, 2^16 queries at a time
+    # (bounded memory); slices of 97 must give the scores of a single pass, on clean and on noisy
+    # data (wide frames).
     from ipfit.robust import local
+    from ipfit.robust import score as scoring
 
     rng = np.random.default_rng(seed)
     surface = synthetic.torus(1500, rng=rng).points
     cloud, planted = with_outliers(surface + rng.normal(scale=noise, size=surface.shape), 0.25, rng)
     whole = score_outliers(cloud)
     monkeypatch.setattr(local, "_QUERIES", 97)
+    monkeypatch.setattr(scoring, "_ROUGH_ROWS", 89)
     sliced = score_outliers(cloud)
     assert np.allclose(sliced.score, whole.score, rtol=1e-9, atol=1e-12)
     assert sliced.noise_scale == pytest.approx(whole.noise_scale, rel=1e-9)
