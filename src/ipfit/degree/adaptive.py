@@ -547,10 +547,9 @@ def _on_every_point(fitter: _Fitter, cloud: Cloud, unit, entry: DegreeResult, de
     full = _fit_degree(fitter, cloud, unit, entry.degree, delta, measured, ordered_contour, options=options,
                        extra_starts=[start], method="polish")
     if measured and rule.is_clean(entry.quality) and not rule.is_clean(full.quality):
-        m = compute_measures(entry.polynomial, cloud.points, unit, delta=delta)
-        poly = entry.polynomial.with_coefficients(entry.polynomial.coefficients, measures=m.to_dict())
+        poly, m, q = _measure(entry.polynomial, cloud, unit, delta, True, ordered_contour)
         full = dataclasses.replace(full, x=poly.coefficients, fun=float(m.distance), polynomial=poly, measures=m,
-                                   quality=quality(poly, cloud, ordered_contour=ordered_contour),
+                                   quality=q,
                                    message=f"{full.message}; the polish on every point left the zero set "
                                            "not clean: the subsample's fit kept")
     return dataclasses.replace(full, nit=entry.nit + full.nit, nfev=entry.nfev + full.nfev,
@@ -660,14 +659,21 @@ def _top_degree(n_points: int, dim: int, min_degree: int, max_degree: int | None
     return top
 
 
+def _measure(poly: ImplicitPolynomial, cloud: Cloud, unit, delta, measured: bool, ordered_contour
+             ) -> tuple[ImplicitPolynomial, Measures, Quality | None]:
+    """``poly`` with its paper's measures on ``cloud`` attached, those measures, and its quality
+    when ``measured``: how every fit of the loop is measured."""
+    m = compute_measures(poly, cloud.points, unit, delta=delta)
+    poly = poly.with_coefficients(poly.coefficients, measures=m.to_dict())
+    return poly, m, quality(poly, cloud, ordered_contour=ordered_contour) if measured else None
+
+
 def _measured_fit(fitted: DegreeResult, poly: ImplicitPolynomial, cloud: Cloud, unit, delta, ordered_contour
                   ) -> DegreeResult:
     """``fitted`` (a degree's fit) with ``poly`` (another solution of the same search) in its
     place, measured as :func:`_fit_degree` measures a fit; its seconds are the measurement's."""
     t0 = time.perf_counter()
-    m = compute_measures(poly, cloud.points, unit, delta=delta)
-    poly = poly.with_coefficients(poly.coefficients, measures=m.to_dict())
-    q = quality(poly, cloud, ordered_contour=ordered_contour)
+    poly, m, q = _measure(poly, cloud, unit, delta, True, ordered_contour)
     return dataclasses.replace(fitted, x=poly.coefficients, fun=float(m.distance), polynomial=poly, measures=m,
                                quality=q, seconds=time.perf_counter() - t0, cleanup=())
 
@@ -677,9 +683,7 @@ def _fit_degree(fitter: _Fitter, cloud: Cloud, unit, degree, delta, measured: bo
     t0 = time.perf_counter()
     poly, solutions, nit, nfev, success, message, fun = fitter(cloud, unit, degree, options, extra_starts,
                                                                method, keep_clear)
-    m = compute_measures(poly, cloud.points, unit, delta=delta)
-    poly = poly.with_coefficients(poly.coefficients, measures=m.to_dict())
-    q = quality(poly, cloud, ordered_contour=ordered_contour) if measured else None
+    poly, m, q = _measure(poly, cloud, unit, delta, measured, ordered_contour)
     return DegreeResult(x=poly.coefficients, fun=float(m.distance if fun is None else fun), nit=nit, nfev=nfev,
                         success=success, message=message, degree=degree, polynomial=poly, measures=m,
                         seconds=time.perf_counter() - t0, quality=q, solutions=solutions)
