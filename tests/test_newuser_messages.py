@@ -59,7 +59,7 @@ def test_a_max_degree_above_the_maximum_warns_when_the_loop_gets_there(tmp_path,
     top = CAPTURE_MAX_DEGREE[2]
     # the paper's rule with a negative epsilon never stops early: it climbs to the last degree
     code, _, err, data = _fit(tmp_path, capsys, "--max-degree", str(top + 2), "--rule", "paper", "--epsilon", "-1",
-                              "--no-picture", "--no-zero-set", "-q", spec="airplane")
+                              "--no-picture", "--no-zero-set", "-q")
     assert code == 0 and max(d["degree"] for d in data["degrees"]) == top + 2
     warned = [line for line in err.splitlines() if "above" in line]
     assert warned == [(f"ipfit fit: warning: --max-degree {top + 2}: the fit went to degree {top + 2}, above {top}, "

@@ -93,9 +93,30 @@ def test_3d_degrees_beyond_the_usual_one_are_tried_only_while_the_f_score_rises(
         f"{GAIN:g} and left it below {EXTEND_BELOW:g}, and degree {usual + 2} did not")
     # a gain up to EXTEND_BELOW or beyond: fitted well enough to stop there
     assert capture_stop(_path(*rising, (usual, 0.99, 0.01, EXTEND_BELOW), dim=3), 0.01) == "no_f_gain"
-    # 2D has no such limit: the same path goes on
+    # in 2D the same path goes on: its usual top degree is higher
+    assert CAPTURE_USUAL_DEGREE[2] > usual
     assert capture_stop(_path(*rising, (usual, 0.99, 0.01, 0.80), dim=2), 0.01) is None
     assert CAPTURE.max_degree(3) > usual
+
+
+def test_2d_degrees_beyond_the_usual_one_are_tried_only_while_the_f_score_rises_below_the_bar():
+    usual = CAPTURE_USUAL_DEGREE[2]
+    below = [(d, 0.95, 0.05, 0.60 + 0.02 * d) for d in range(2, usual, 2)]  # F rises by 0.04 a degree
+    best = below[-1][3]
+    # the usual top degree raised the F-score by more than GAIN and left it below EXTEND_BELOW: go on
+    assert capture_stop(_path(*below, (usual, 0.99, 0.01, best + 2 * GAIN), dim=2), 0.01) is None
+    # beyond it, a degree must gain again; the gain measured against the best of all lower degrees
+    path = _path(*below, (usual, 0.99, 0.01, best + 2 * GAIN), (usual + 2, 0.99, 0.01, best + 2.5 * GAIN), dim=2)
+    assert capture_stop(path, 0.01) == "no_f_gain"
+    for entry in path:
+        entry.cleanup = ()
+    assert CAPTURE.explain(path, len(path) - 2, "no_f_gain", 0.01).endswith(
+        f"in 2D a degree above {usual} is tried only after one that raised the best clean F-score by more than "
+        f"{GAIN:g} and left it below {EXTEND_BELOW:g}, and degree {usual + 2} did not")
+    # a small gain at the usual top degree, or an F-score already at the bar: stop there
+    assert capture_stop(_path(*below, (usual, 0.99, 0.01, best + GAIN / 2), dim=2), 0.01) == "no_f_gain"
+    assert capture_stop(_path(*below, (usual, 0.99, 0.01, EXTEND_BELOW), dim=2), 0.01) == "no_f_gain"
+    assert CAPTURE.max_degree(2) > usual
 
 
 def test_the_loop_stops_once_the_shape_is_captured():
@@ -325,7 +346,7 @@ def test_the_registry_holds_the_rules_by_name():
     assert all(RULES[name].name == name and isinstance(RULES[name], DegreeRule) for name in RULES)
     assert (RULES["capture"], RULES["geometric"], RULES["paper"]) == (CAPTURE, GEOMETRIC, PAPER)
     assert get_rule("Paper") is PAPER and get_rule(CAPTURE) is CAPTURE   # names ignore case; objects pass
-    assert (CAPTURE.max_degree(2), CAPTURE.max_degree(3)) == (14, 12)
+    assert (CAPTURE.max_degree(2), CAPTURE.max_degree(3)) == (20, 12)
     assert (GEOMETRIC.max_degree(2), PAPER.max_degree(2), PAPER.max_degree(3)) == (10, 10, 8)
     # the command line offers exactly the registry's names
     import argparse

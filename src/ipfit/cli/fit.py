@@ -217,7 +217,7 @@ def _parse_degree(text: str, dim: int) -> int | None:
 
 def _warn_high_degree(option: str, degree: int | None, dim: int, limit: int | None = None) -> None:
     """One stderr line when a degree goes beyond the highest the capture rule tries by default
-    (14 in 2D, 12 in 3D, the README's "last degree"): ipfit accepts up to its hard limit
+    (``CAPTURE_MAX_DEGREE``, the README's "last degree"): ipfit accepts up to its hard limit
     (``basis.MAX_DEGREE``), but the monomial basis conditions badly and each degree costs more.
     ``limit``: the option's value when ``degree`` is the highest one the loop reached under it."""
     from ..degree.rules import CAPTURE_MAX_DEGREE
