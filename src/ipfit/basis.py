@@ -31,7 +31,7 @@ __all__ = [
     "blocked_products",
 ]
 
-#: Highest degree ipfit fits or reads, per dimension: far beyond what the data need (14 in 2D and
+#: Highest degree ipfit fits or reads, per dimension: far beyond what the data need (20 in 2D and
 #: 12 in 3D by default), low enough that one evaluation of f over a default grid stays in seconds
 #: (a degree-20 surface has 1,771 coefficients).
 MAX_DEGREE = {2: 30, 3: 20}

@@ -106,9 +106,9 @@ def add_fit_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--degree", default="auto", metavar="auto|N",
                         help="'auto' for the adaptive degree (default), or a fixed even degree N")
     parser.add_argument("--max-degree", type=positive_int, metavar="G",
-                        help="largest degree the adaptive loop tries (default: 14 in 2D and 12 in 3D with the capture "
-                        "rule, in 3D beyond 8 only while each degree raises the F-score, within 2 points per "
-                        "coefficient; 10 in 2D and 8 in 3D with the other rules)")
+                        help="largest degree the adaptive loop tries (default: 20 in 2D and 12 in 3D with the capture "
+                        "rule, beyond 14 in 2D and 8 in 3D only while each degree raises the F-score, within 2 "
+                        "points per coefficient; 10 in 2D and 8 in 3D with the other rules)")
     parser.add_argument("--method", default=None, choices=LazyChoices(_method_names), metavar="METHOD",
                         help="fixed-degree method: %(choices)s"
                         f" (default {DEFAULT_METHOD}; 'de' and 'pso' are the paper's metaheuristics)")

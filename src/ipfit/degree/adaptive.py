@@ -303,8 +303,8 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
     options : :class:`~ipfit.SearchOptions` of the refinement methods (default
         :data:`ipfit.RECOMMENDED`; :data:`ipfit.PAPER` is the paper's); an error with a linear
         method or a callable, which have no search.
-    max_degree : G, the last degree tried. Default: with the capture rule 14 in 2D and 12 in 3D
-        (beyond 8 only while each degree raises the F-score), lowered to the highest degree with
+    max_degree : G, the last degree tried. Default: with the capture rule 20 in 2D and 12 in 3D
+        (beyond 14 in 2D and 8 in 3D only while each degree raises the F-score), lowered to the highest degree with
         at least 2 points per coefficient; with the other
         rules 10 in 2D and 8 in 3D (the paper).
     min_degree : the first degree tried (default 2).

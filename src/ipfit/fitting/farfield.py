@@ -49,7 +49,7 @@ DEFAULT_CLEARANCE = 3.0
 #: Taubin distance is about r/g while the true distance is about r, so the fraction must stay
 #: below 1/g for a clean fit not to be penalised: 1/8 was chosen when degrees went up to 8, and
 #: still sees small loops between grid nodes (1/16 missed one inside the boot at degree 8). The
-#: capture rule now goes to 14 in 2D and 12 in 3D, where a clean fit's far samples may pay a
+#: capture rule now goes to 20 in 2D and 12 in 3D, where a clean fit's far samples may pay a
 #: little; not re-measured there.
 DEFAULT_RATIO = 1.0 / 8.0
 #: Candidate grid nodes along the longest side for the objective term's samples: fine enough
