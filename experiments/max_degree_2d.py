@@ -11,7 +11,7 @@ the horse and "&" silhouettes of ``tests/data``) is fitted by the recommended pi
 (``ipfit.fit_adaptive`` with its defaults, seed 0) twice: with the capture rule stopped at
 degree 14 in 2D (automatic degrees keeping 2 points per coefficient) and with the same rule
 allowed up to ``--top``: by default as ``ipfit fit`` does today (degrees above 14 only while
-each raises the F-score by more than 0.01 and leaves it below 0.95,
+each raises the F-score by more than 0.01 and leaves it below 0.98,
 ``ipfit.degree.rules.CAPTURE_USUAL_DEGREE``), with ``--ungated`` whenever the look-ahead asks.
 The two runs are the same fit up to degree 14 (the loop and its seeds are the same), so the run
 stopped at 14 is only made for the shapes whose other run went beyond it; the rows say so.
@@ -126,13 +126,14 @@ def markdown(rows: list[dict], command: str, gated: bool = True) -> str:
             "time")
     if gated:
         reading = (f"{tail}: degrees above {BEFORE} are tried only where degree {BEFORE} still raised the F-score "
-                   "by more than 0.01 and left it below 0.95, the outlines with thin appendages that the lower "
+                   "by more than 0.01 and left it below 0.98 (`ipfit.degree.rules.EXTEND_BELOW`), the outlines "
+                   "with thin appendages or detail that the lower "
                    "degrees cannot follow. This is `ipfit fit`'s default.")
     else:
         reading = (f"{tail}, wherever the look-ahead asks (the higher degrees that gain F-score grow loops of "
                    "their own, and the capture rule's band of F-scores moves up past the lower degrees of the "
                    f"right topology). Hence the default's gate: beyond {BEFORE} only while the F-score rises "
-                   "below 0.95 (`experiments/max_degree_2d.py` without `--ungated`, docs/max-degree-2d.md).")
+                   "below 0.98 (`experiments/max_degree_2d.py` without `--ungated`, docs/max-degree-2d.md).")
     out += ["", "## Reading", "", reading,
             "", f"## The shapes that went beyond degree {BEFORE}", "",
             f"| set | shape | points | up to {BEFORE}: degree | F | topology | s | up to {top}: degree | F | topology "

@@ -90,9 +90,9 @@ def test_3d_degrees_beyond_the_usual_one_are_tried_only_while_the_f_score_rises(
     path[3].cleanup = ()
     assert CAPTURE.explain(path, 3, "no_f_gain", 0.01).endswith(
         f"in 3D a degree above {usual} is tried only after one that raised the best clean F-score by more than "
-        f"{GAIN:g} and left it below {EXTEND_BELOW:g}, and degree {usual + 2} did not")
+        f"{GAIN:g} and left it below {EXTEND_BELOW[3]:g}, and degree {usual + 2} did not")
     # a gain up to EXTEND_BELOW or beyond: fitted well enough to stop there
-    assert capture_stop(_path(*rising, (usual, 0.99, 0.01, EXTEND_BELOW), dim=3), 0.01) == "no_f_gain"
+    assert capture_stop(_path(*rising, (usual, 0.99, 0.01, EXTEND_BELOW[3]), dim=3), 0.01) == "no_f_gain"
     # in 2D the same path goes on: its usual top degree is higher
     assert CAPTURE_USUAL_DEGREE[2] > usual
     assert capture_stop(_path(*rising, (usual, 0.99, 0.01, 0.80), dim=2), 0.01) is None
@@ -112,10 +112,14 @@ def test_2d_degrees_beyond_the_usual_one_are_tried_only_while_the_f_score_rises_
         entry.cleanup = ()
     assert CAPTURE.explain(path, len(path) - 2, "no_f_gain", 0.01).endswith(
         f"in 2D a degree above {usual} is tried only after one that raised the best clean F-score by more than "
-        f"{GAIN:g} and left it below {EXTEND_BELOW:g}, and degree {usual + 2} did not")
+        f"{GAIN:g} and left it below {EXTEND_BELOW[2]:g}, and degree {usual + 2} did not")
     # a small gain at the usual top degree, or an F-score already at the bar: stop there
     assert capture_stop(_path(*below, (usual, 0.99, 0.01, best + GAIN / 2), dim=2), 0.01) == "no_f_gain"
-    assert capture_stop(_path(*below, (usual, 0.99, 0.01, EXTEND_BELOW), dim=2), 0.01) == "no_f_gain"
+    assert capture_stop(_path(*below, (usual, 0.99, 0.01, EXTEND_BELOW[2]), dim=2), 0.01) == "no_f_gain"
+    # the 2D bar is higher than the 3D one: an F-score between them goes on in 2D only
+    between = (EXTEND_BELOW[2] + EXTEND_BELOW[3]) / 2
+    assert capture_stop(_path(*below, (usual, 0.99, 0.01, between), dim=2), 0.01) is None
+    assert capture_stop(_path(*below, (usual + 2, 0.99, 0.01, between), dim=3), 0.01) == "no_f_gain"
     assert CAPTURE.max_degree(2) > usual
 
 
