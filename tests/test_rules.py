@@ -15,8 +15,8 @@ from ipfit.datasets import load_dataset, synthetic
 from ipfit.exceptions import InvalidInputError
 from ipfit.zeroset.quality import Quality
 from ipfit.degree.rules import (CAPTURE, CAPTURE_USUAL_DEGREE, EXTEND_BELOW, GAIN, GEOMETRIC, MISSING_RECALL, PAPER,
-                                PATIENCE, RULES, TOLERANCE, DegreeRule, capture_stop, gains,
-                         get_rule, is_clean, select_degree_capture)
+                                PATIENCE, RULES, TOLERANCE, CaptureRule, DegreeRule, capture_stop, gains,
+                                get_rule, is_clean, select_degree_capture, topology_differs)
 
 
 def _quality(f=0.9, recall=None, d2z=0.01, spurious=(), n_open=0, tau=0.05, n_components=1) -> Quality:
@@ -121,6 +121,38 @@ def test_2d_degrees_beyond_the_usual_one_are_tried_only_while_the_f_score_rises_
     assert capture_stop(_path(*below, (usual, 0.99, 0.01, between), dim=2), 0.01) is None
     assert capture_stop(_path(*below, (usual + 2, 0.99, 0.01, between), dim=3), 0.01) == "no_f_gain"
     assert CAPTURE.max_degree(2) > usual
+
+
+def test_the_gate_beyond_the_usual_degree_judges_f_score_not_topology():
+    """A degree 14 of another topology than the data's (an octopus outline with an extra loop)
+    that still raised the F-score goes on to 16: whether a higher degree pays is a question of
+    F-score, and the selection settles the topology. Not clean apart from the topology (a
+    spurious loop), it stops."""
+    usual = CAPTURE_USUAL_DEGREE[2]
+    entries = [_topo_entry(d, 0.60 + 0.02 * d, 1) for d in range(2, usual, 2)]
+    for entry in entries:
+        entry.polynomial = SimpleNamespace(dim=2)
+    best = entries[-1].quality.f_score
+    two_loops = _topo_entry(usual, best + 2 * GAIN, 2)
+    two_loops.polynomial = SimpleNamespace(dim=2)
+    assert topology_differs(two_loops.quality) and not is_clean(two_loops.quality)
+    assert capture_stop([*entries, two_loops], 0.01) is None
+    spurious = _topo_entry(usual, best + 2 * GAIN, 1, clean=False)
+    spurious.polynomial = SimpleNamespace(dim=2)
+    assert capture_stop([*entries, spurious], 0.01) == "no_f_gain"
+
+
+def test_the_usual_degrees_are_the_rules_own():
+    """A capture rule with no usual top degree in 2D (the ungated variant of
+    experiments/max_degree_2d.py) lets the look-ahead decide above 14."""
+    class Ungated(CaptureRule):
+        usual_degrees = {3: CAPTURE_USUAL_DEGREE[3]}
+
+    usual = CAPTURE_USUAL_DEGREE[2]
+    below = [(d, 0.95, 0.05, 0.60 + 0.02 * d) for d in range(2, usual, 2)]
+    path = _path(*below, (usual, 0.99, 0.01, below[-1][3] + GAIN / 2), dim=2)
+    assert CAPTURE.stop(path, 0.01) == "no_f_gain"
+    assert Ungated().stop(path, 0.01) is None
 
 
 def test_the_loop_stops_once_the_shape_is_captured():

@@ -304,9 +304,9 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
         :data:`ipfit.RECOMMENDED`; :data:`ipfit.PAPER` is the paper's); an error with a linear
         method or a callable, which have no search.
     max_degree : G, the last degree tried. Default: with the capture rule 20 in 2D and 12 in 3D
-        (beyond 14 in 2D and 8 in 3D only while each degree raises the F-score), lowered to the highest degree with
-        at least 2 points per coefficient; with the other
-        rules 10 in 2D and 8 in 3D (the paper).
+        (beyond 14 in 2D and 8 in 3D only while each degree raises the F-score), lowered to the
+        highest degree with at least 2 points per coefficient; with the other rules 10 in 2D and
+        8 in 3D (the paper).
     min_degree : the first degree tried (default 2).
     epsilon : ε, the smallest smoothness gain that justifies a higher degree.
     delta : δ of the paper's distance.

@@ -9,10 +9,9 @@
   could then be selected, see below), or after :data:`PATIENCE` degrees in a row without a
   substantial gain (look-ahead), or at the maximum degree; beyond :data:`CAPTURE_USUAL_DEGREE`
   (14 in 2D, 8 in 3D) a degree is fitted only when the one before it raised the best clean
-  F-score by more than :data:`GAIN` and left it below :data:`EXTEND_BELOW` (0.98 in 2D, 0.95
-  in 3D; thin parts need
-  degrees 10 and 12 in 3D, 16 to 20 in 2D, which cost several times the usual top degree and
-  rarely pay elsewhere: docs/quality-3d.md, docs/max-degree-2d.md);
+  F-score by more than :data:`GAIN` and left it below :data:`EXTEND_BELOW` (0.98 in 2D, 0.95 in
+  3D): thin parts need degrees 10 and 12 in 3D, 16 to 20 in 2D, which cost several times the
+  usual top degree and rarely pay elsewhere (docs/quality-3d.md, docs/max-degree-2d.md);
 * **select** the lowest clean degree whose F-score is within :data:`TOLERANCE` of the best
   clean F-score, so simple shapes keep low degrees and a degree that bulges (lower precision,
   hence lower F) is not preferred over one that does not. With no clean degree, the highest
@@ -231,9 +230,9 @@ def capture_stop(entries, epsilon: float, usual_degrees: Mapping[int, int] = CAP
     """Whether the capture rule's loop stops after the last of ``entries``: 'captured' (a clean
     degree has F ≥ 1 − TOLERANCE, so no higher degree could be selected), 'flattened'
     (:data:`PATIENCE` degrees in a row without a substantial gain), 'no_f_gain' (the last degree
-    is ``usual_degrees[dim]`` (:data:`CAPTURE_USUAL_DEGREE`) or above and did not raise the best clean F-score by more
-    than :data:`GAIN`, or raised it to ``EXTEND_BELOW[dim]`` or more; clean here apart from the
-    topology) or None (go on)."""
+    is ``usual_degrees[dim]`` (:data:`CAPTURE_USUAL_DEGREE`) or above and did not raise the best
+    clean F-score by more than :data:`GAIN`, or raised it to ``EXTEND_BELOW[dim]`` or more; clean
+    here apart from the topology) or None (go on)."""
     clean_f = list(map(_clean_f, entries))
     if any(f is not None and f >= 1 - TOLERANCE for f in clean_f):
         return "captured"
