@@ -298,3 +298,14 @@ def test_a_big_cloud_says_it_fitted_the_degrees_on_a_subsample(tmp_path):
     result = json.loads((tmp_path / "t.json").read_text())
     assert result["selected_degree"] == 4 and result["quality"]["f_score"] > 0.999
     assert "degrees fitted on 50,000 of the 60,000 points spread evenly" in result["adaptive"]["message"]
+
+
+def test_the_second_fit_of_a_weighted_surface_is_announced():
+    import io
+
+    from ipfit.cli._progress import Progress
+
+    stream = io.StringIO()
+    Progress("lines", stream=stream)({"event": "weights_variant",
+                                      "message": "fitting again, weighted by the outlier score alone"})
+    assert stream.getvalue().splitlines() == ["fitting again, weighted by the outlier score alone"]

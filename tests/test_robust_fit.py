@@ -63,6 +63,59 @@ def test_a_sphere_with_30_percent_outliers_keeps_its_zero_set(seed, offset):
     assert _zero_set_error(result.polynomial, _sphere_distance, truth, size=2.0) < 0.01
 
 
+def test_a_surface_with_strays_is_fitted_with_both_weightings_and_says_which_it_kept(seed):
+    # 3D: the normals' support factor on the weights also zeroes clean points, so the degrees are
+    # fitted a second time with the score's weights alone (from the same random stream); one
+    # announcement, every degree twice, the evaluations of both counted, the message says which.
+    rng = np.random.default_rng(seed)
+    cloud, _ = with_outliers(synthetic.sphere(800, radius=1.0, rng=rng).points, 0.3, rng)
+    events = []
+    result = ipfit.fit_adaptive(cloud, max_degree=4, rng=seed, progress=events.append)
+    kinds = [e["event"] for e in events if e["event"] in ("degree_start", "weights_variant")]
+    assert kinds == ["degree_start", "degree_start", "weights_variant", "degree_start", "degree_start"]
+    assert "weights: the outlier score's" in result.message
+    assert result.nfev > sum(d.nfev for d in result.degrees)
+    truth = synthetic.sphere(6000, radius=1.0, rng=np.random.default_rng(99)).points
+    assert _zero_set_error(result.polynomial, _sphere_distance, truth, size=2.0) < 0.01
+
+
+def test_a_curve_with_strays_is_fitted_once(seed):
+    rng = np.random.default_rng(seed)
+    cloud, _ = with_outliers(synthetic.ellipse(300, a=2.0, b=1.0, rng=rng, random=True).points, 0.3, rng)
+    events = []
+    result = ipfit.fit_adaptive(cloud, max_degree=4, rng=seed, progress=events.append)
+    assert result.outliers is not None and result.outliers.count > 0
+    assert not any(e["event"] == "weights_variant" for e in events)
+    assert [e["degree"] for e in events if e["event"] == "degree_start"] == [d.degree for d in result.degrees]
+    assert "weights:" not in result.message
+
+
+def test_the_kept_weighting_is_the_one_that_measures_better():
+    # The choice between the two weightings: the higher F-score on the points both trust; a tie
+    # keeps the first fit (the one with the support factor). A second loop off the data loses.
+    from types import SimpleNamespace
+
+    from ipfit.degree.adaptive import _Loop, _measures_better
+
+    shape = synthetic.circle(200)
+    points = ipfit.Cloud(shape.points)
+    exact, shifted = shape.polynomial, synthetic.circle(200, center=(0.08, 0.0)).polynomial
+    # the unit circle and a second loop inside it, of radius 0.5
+    spurious = synthetic.from_terms(2, 4, {(0, 0): 0.25, (2, 0): -1.25, (0, 2): -1.25, (4, 0): 1, (0, 4): 1,
+                                           (2, 2): 2})
+    f = {name: ipfit.quality(poly, points).f_score for name, poly in
+         (("exact", exact), ("shifted", shifted), ("spurious", spurious))}
+    assert f["shifted"] < f["exact"] and f["spurious"] < f["exact"]
+
+    def loop(poly):
+        return _Loop([SimpleNamespace(polynomial=poly)], 0, "captured", "")
+
+    assert _measures_better(loop(exact), loop(shifted), points)
+    assert not _measures_better(loop(shifted), loop(exact), points)
+    assert not _measures_better(loop(exact), loop(exact), points)
+    assert _measures_better(loop(exact), loop(spurious), points)
+
+
 # An ellipse and a sphere leave a degree-2 fit no room to bend to the outliers (today's fit of
 # every point survives them too); shapes of degree 4 do not: there the fit of every point
 # fails, and the test shows what leaving the outliers out buys.

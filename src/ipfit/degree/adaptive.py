@@ -8,6 +8,7 @@ Every degree tried is kept, so a user can inspect the whole path and take anothe
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import time
 from collections.abc import Callable, Mapping
@@ -335,9 +336,12 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
         on a weighted cloud: reweighted start fits, a loss truncated at a few noise scales), so
         that strays the score missed pull little; normals estimated for a weighted cloud come
         from its confident points (weight >= 0.9), and each weight is multiplied by the
-        normal's confidence (see :func:`ipfit.estimate_normals`). A mesh's vertices are its surface:
-        'auto' treats none as outliers there, and a share keeps the faces whose vertices are
-        all inliers. The result records the decision (:attr:`AdaptiveResult.outliers`).
+        normal's confidence (see :func:`ipfit.estimate_normals`); in 3D, where that factor also
+        removes clean points (rows of a mesh's vertices, creases), the degrees are fitted once
+        more with the score's weights alone, and the fit whose selected degree has the higher
+        F-score on the points of supported weight >= 0.5 is kept, its ``message`` saying which. A mesh's
+        vertices are its surface: 'auto' treats none as outliers there, and a share keeps the
+        faces whose vertices are all inliers. The result records the decision (:attr:`AdaptiveResult.outliers`).
     rng : seed or Generator (SPEC 7), passed to the metaheuristics.
     progress : called with a dict per event ('degree_start', 'iteration' with its 'stage',
         'degree_done'; 'normals' while normals are estimated, see :func:`ipfit.estimate_normals`;
@@ -345,7 +349,8 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
         when the rule repairs a degree to the data's topology after the loop; 'every_point' with
         the 'degree', 'n_points' and 'fit_points' when a big cloud's degrees were fitted on an even
         subsample of it and the selected one is polished and measured on every point, see
-        :class:`~ipfit.SearchOptions` ``fit_points``).
+        :class:`~ipfit.SearchOptions` ``fit_points``); 'weights_variant' with a 'message' before
+        the second fit of a weighted 3D cloud (see ``outliers``).
 
     Returns
     -------
@@ -403,6 +408,7 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
         weights = scored.weights[keep] * (1.0 if weights is None else weights[keep])
     top = _top_degree(len(pts), dim, min_degree, max_degree, rule)
     unit = known
+    scored_weights = None  # the score's weights, when the support factor below changed them
     if unit is None and weights is None:
         unit = estimate_normals(pts, progress=progress)
     elif unit is None:
@@ -416,21 +422,109 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
         unit, support = estimate_normals(pts, inliers=None if isinstance(confident, slice) else confident,
                                          progress=progress, return_confidence=True)
         if support.any():
-            weights = weights * support
+            scored_weights, weights = weights, weights * support
     # One cloud for the whole fit: it keeps what every degree and repair round reuses (far-field
     # samples, start fits' R factors, spacing, the data's side of the quality measurements). Its
     # normals are ``unit`` normalised once more, as refine and the linear fits have always done
     # with the normals they are given: that rounding is part of every fit's coefficients.
     cloud = Cloud._checked(pts, as_normals(unit, pts), faces, weights)
+    if rule.measured and ordered_contour is None:
+        ordered_contour = dim == 2 and looks_like_contour(pts)
+    settings = _LoopSettings(method, options, rule, epsilon, delta, min_degree, top, progress, noise,
+                             ordered_contour)
+    start = time.perf_counter()
+    if scored_weights is None or dim != 3:
+        loop = _degree_loop(cloud, unit, settings, generator)
+        total = [loop]
+    else:
+        # 3D: the support factor keeps a stray the score missed from pulling the fit, but it also
+        # zeroes clean points whose k nearest lie on a row or straddle a crease (a quarter of a
+        # CAD mesh's vertices), and with them the parts they sample. Both weightings are fitted
+        # from the same random stream, and the one whose selected degree measures better on the
+        # same points is kept (docs/robust.md).
+        twin = copy.deepcopy(generator)
+        supported = loop = _degree_loop(cloud, unit, settings, generator)
+        total = [supported]
+        if progress is not None:
+            progress({"event": "weights_variant", "message": "fitting again, weighted by the outlier score alone"})
+        try:
+            plain = _degree_loop(Cloud._checked(pts, cloud.oriented, faces, scored_weights), unit, settings, twin)
+        except KeyboardInterrupt:  # before its first degree finished: the first fit stands
+            plain = None
+        if plain is not None:
+            total.append(plain)
+            # measured on the points both fits trust (the supported weights' inliers), not on
+            # every point kept: a sheet grown through strays the score missed would gain there
+            trusted = Cloud._checked(pts[cast(NDArray[np.float64], weights) >= 0.5], None)
+            if _measures_better(plain, supported, trusted):
+                loop = dataclasses.replace(plain, message=f"{plain.message}; weights: the outlier score's alone (the "
+                                                          "fit with the normals' support on them measured lower)")
+            else:
+                loop = dataclasses.replace(loop, message=f"{loop.message}; weights: the outlier score's times the "
+                                                         "normals' support (the fit with the score's alone measured "
+                                                         "no better)")
+    chosen = loop.results[loop.index]
+    name = method if isinstance(method, str) else getattr(method, "__name__", "custom")
+    success = loop.reason != "interrupted" and rule.success(loop.results, loop.index)
+    return AdaptiveResult(
+        x=chosen.x, fun=chosen.fun, nit=sum(r.nit for done in total for r in done.results),
+        nfev=sum(r.nfev for done in total for r in done.results), success=success,
+        message=loop.message, polynomial=chosen.polynomial,
+        selected_degree=chosen.degree, degrees=tuple(loop.results), reason=loop.reason, epsilon=epsilon, delta=delta,
+        method=name, rule=rule.name, seconds=time.perf_counter() - start,
+        options=options if method in REFINE_METHODS else None, outliers=scored)
+
+
+@dataclass(frozen=True)
+class _LoopSettings:
+    """What every degree loop of one :func:`fit_adaptive` call shares (checked there)."""
+
+    method: Any
+    options: SearchOptions | None
+    rule: DegreeRule
+    epsilon: float
+    delta: float
+    min_degree: int
+    top: int
+    progress: Callable[[dict], None] | None
+    noise: float | None
+    ordered_contour: bool | None
+
+
+@dataclass(frozen=True)
+class _Loop:
+    """One degree loop's outcome: every degree's result, the selected one's index, why, and how."""
+
+    results: list[DegreeResult]
+    index: int
+    reason: str
+    message: str
+
+
+def _measures_better(one: _Loop, other: _Loop, points: Cloud) -> bool:
+    """Whether ``one``'s selected degree has a higher F-score than ``other``'s on ``points``.
+
+    Each is its own loop's choice, clean there where a degree was; a zero set that strays from
+    ``points`` (a sheet through strays the score missed) loses precision on them."""
+    def f_score(loop: _Loop) -> float:
+        return quality(loop.results[loop.index].polynomial, points).f_score
+    return f_score(one) > f_score(other)
+
+
+def _degree_loop(cloud: Cloud, unit, settings: _LoopSettings, generator) -> _Loop:
+    """The degree loop on ``cloud`` (with ``unit``, its normals as given), the rule's selection,
+    and the selected degree polished and measured on every point when the loop fitted a subsample."""
+    method, options, rule, epsilon, delta = (settings.method, settings.options, settings.rule, settings.epsilon,
+                                             settings.delta)
+    progress, ordered_contour, top, min_degree = (settings.progress, settings.ordered_contour, settings.top,
+                                                  settings.min_degree)
     # A big cloud's degrees are fitted on an even subsample of it (SearchOptions.fit_points);
     # the selected one is polished and measured on every point after the loop.
     work, work_unit = _working_cloud(cloud, unit, options if method in REFINE_METHODS else None)
     measured = rule.measured
-    if measured and ordered_contour is None:
-        ordered_contour = dim == 2 and looks_like_contour(pts)
-    fitter = _Fitter(method, options if method in REFINE_METHODS else None, delta, generator, progress, noise)
+    fitter = _Fitter(method, options if method in REFINE_METHODS else None, delta, generator, progress,
+                     settings.noise)
     degrees = list(range(min_degree, top + 1, 2)) if top > min_degree else [min_degree]
-    start = time.perf_counter()
     results: list[DegreeResult] = []
     # per degree, for a repair after the loop: its fit before any repair, its refit, its warm start
     unrepaired: list[tuple[DegreeResult, Callable[..., DegreeResult], ImplicitPolynomial | None]] = []
@@ -509,15 +603,7 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
         except KeyboardInterrupt:  # the subsample's fit stands, as a degree finished in the loop does
             reason = "interrupted"
             message = f"{message}; {sampled}; interrupted while polishing degree {results[index].degree} on every point"
-    chosen = results[index]
-    name = method if isinstance(method, str) else getattr(method, "__name__", "custom")
-    success = reason != "interrupted" and rule.success(results, index)
-    return AdaptiveResult(
-        x=chosen.x, fun=chosen.fun, nit=sum(r.nit for r in results), nfev=sum(r.nfev for r in results), success=success,
-        message=message, polynomial=chosen.polynomial,
-        selected_degree=chosen.degree, degrees=tuple(results), reason=reason, epsilon=epsilon, delta=delta,
-        method=name, rule=rule.name, seconds=time.perf_counter() - start,
-        options=options if method in REFINE_METHODS else None, outliers=scored)
+    return _Loop(results, index, reason, message)
 
 
 def _working_cloud(cloud: Cloud, unit, options: SearchOptions | None):
