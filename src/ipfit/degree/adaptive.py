@@ -339,9 +339,10 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
         normal's confidence (see :func:`ipfit.estimate_normals`); in 3D, where that factor also
         removes clean points (rows of a mesh's vertices, creases), the degrees are fitted once
         more with the score's weights alone, and the fit whose selected degree has the higher
-        F-score on the points of supported weight >= 0.5 is kept, its ``message`` saying which. A mesh's
-        vertices are its surface: 'auto' treats none as outliers there, and a share keeps the
-        faces whose vertices are all inliers. The result records the decision (:attr:`AdaptiveResult.outliers`).
+        F-score on the points of weight >= 0.5 after the factor is kept, its ``message`` saying
+        which. A mesh's vertices are its surface: 'auto' treats none as outliers there, and a
+        share keeps the faces whose vertices are all inliers. The result records the decision
+        (:attr:`AdaptiveResult.outliers`).
     rng : seed or Generator (SPEC 7), passed to the metaheuristics.
     progress : called with a dict per event ('degree_start', 'iteration' with its 'stage',
         'degree_done'; 'normals' while normals are estimated, see :func:`ipfit.estimate_normals`;
@@ -440,8 +441,8 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
         # 3D: the support factor keeps a stray the score missed from pulling the fit, but it also
         # zeroes clean points whose k nearest lie on a row or straddle a crease (a quarter of a
         # CAD mesh's vertices), and with them the parts they sample. Both weightings are fitted
-        # from the same random stream, and the one whose selected degree measures better on the
-        # same points is kept (docs/robust.md).
+        # from the same random stream, and the one whose selected degree has the higher F-score on
+        # the points both trust is kept (docs/robust.md).
         twin = copy.deepcopy(generator)
         supported = loop = _degree_loop(cloud, unit, settings, generator)
         total = [supported]
