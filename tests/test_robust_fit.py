@@ -91,29 +91,36 @@ def test_a_curve_with_strays_is_fitted_once(seed):
 
 
 def test_the_kept_weighting_is_the_one_that_measures_better():
-    # The choice between the two weightings: the higher F-score on the points both trust; a tie
-    # keeps the first fit (the one with the support factor). A second loop off the data loses.
+    # The choice between the two weightings: the second replaces the first only with a higher
+    # F-score on the points both trust, and never a clean zero set with one that is not there.
     from types import SimpleNamespace
 
     from ipfit.degree.adaptive import _Loop, _measures_better
+    from ipfit.degree.rules import CAPTURE
 
     shape = synthetic.circle(200)
     points = ipfit.Cloud(shape.points)
     exact, shifted = shape.polynomial, synthetic.circle(200, center=(0.08, 0.0)).polynomial
-    # the unit circle and a second loop inside it, of radius 0.5
+    # the unit circle and a second loop inside it, of radius 0.5: every point on it, not clean
     spurious = synthetic.from_terms(2, 4, {(0, 0): 0.25, (2, 0): -1.25, (0, 2): -1.25, (4, 0): 1, (0, 4): 1,
                                            (2, 2): 2})
-    f = {name: ipfit.quality(poly, points).f_score for name, poly in
+    q = {name: ipfit.quality(poly, points) for name, poly in
          (("exact", exact), ("shifted", shifted), ("spurious", spurious))}
-    assert f["shifted"] < f["exact"] and f["spurious"] < f["exact"]
+    assert CAPTURE.is_clean(q["exact"]) and CAPTURE.is_clean(q["shifted"]) and not CAPTURE.is_clean(q["spurious"])
+    assert q["shifted"].f_score < q["exact"].f_score
 
     def loop(poly):
         return _Loop([SimpleNamespace(polynomial=poly)], 0, "captured", "")
 
-    assert _measures_better(loop(exact), loop(shifted), points)
-    assert not _measures_better(loop(shifted), loop(exact), points)
-    assert not _measures_better(loop(exact), loop(exact), points)
-    assert _measures_better(loop(exact), loop(spurious), points)
+    def better(one, other):
+        return _measures_better(loop(one), loop(other), points, CAPTURE)
+
+    assert better(exact, shifted) and not better(shifted, exact)
+    assert not better(exact, exact)  # a tie keeps the first fit
+    assert better(exact, spurious)
+    # a spurious loop never replaces a clean fit, even one of a lower F-score
+    assert q["spurious"].f_score > q["shifted"].f_score
+    assert not better(spurious, shifted)
 
 
 # An ellipse and a sphere leave a degree-2 fit no room to bend to the outliers (today's fit of

@@ -338,11 +338,11 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
         from its confident points (weight >= 0.9), and each weight is multiplied by the
         normal's confidence (see :func:`ipfit.estimate_normals`); in 3D, where that factor also
         removes clean points (rows of a mesh's vertices, creases), the degrees are fitted once
-        more with the score's weights alone, and the fit whose selected degree has the higher
-        F-score on the points of weight >= 0.5 after the factor is kept, its ``message`` saying
-        which. A mesh's vertices are its surface: 'auto' treats none as outliers there, and a
-        share keeps the faces whose vertices are all inliers. The result records the decision
-        (:attr:`AdaptiveResult.outliers`).
+        more with the score's weights alone, and that fit is kept when its selected degree has
+        the higher F-score on the points of weight >= 0.5 after the factor and is clean there
+        (or the first is not either), its ``message`` saying which. A mesh's vertices are its
+        surface: 'auto' treats none as outliers there, and a share keeps the faces whose
+        vertices are all inliers. The result records the decision (:attr:`AdaptiveResult.outliers`).
     rng : seed or Generator (SPEC 7), passed to the metaheuristics.
     progress : called with a dict per event ('degree_start', 'iteration' with its 'stage',
         'degree_done'; 'normals' while normals are estimated, see :func:`ipfit.estimate_normals`;
@@ -441,8 +441,8 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
         # 3D: the support factor keeps a stray the score missed from pulling the fit, but it also
         # zeroes clean points whose k nearest lie on a row or straddle a crease (a quarter of a
         # CAD mesh's vertices), and with them the parts they sample. Both weightings are fitted
-        # from the same random stream, and the one whose selected degree has the higher F-score on
-        # the points both trust is kept (docs/robust.md).
+        # from the same random stream; the second is kept when it measures better on the points
+        # both trust (_measures_better, docs/robust.md).
         twin = copy.deepcopy(generator)
         supported = loop = _degree_loop(cloud, unit, settings, generator)
         total = [supported]
@@ -457,7 +457,7 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
             # measured on the points both fits trust (the supported weights' inliers), not on
             # every point kept: a sheet grown through strays the score missed would gain there
             trusted = Cloud._checked(pts[cast(NDArray[np.float64], weights) >= 0.5], None)
-            if _measures_better(plain, supported, trusted):
+            if _measures_better(plain, supported, trusted, rule):
                 loop = dataclasses.replace(plain, message=f"{plain.message}; weights: the outlier score's alone (the "
                                                           "fit with the normals' support on them measured lower)")
             else:
@@ -502,14 +502,16 @@ class _Loop:
     message: str
 
 
-def _measures_better(one: _Loop, other: _Loop, points: Cloud) -> bool:
-    """Whether ``one``'s selected degree has a higher F-score than ``other``'s on ``points``.
+def _measures_better(one: _Loop, other: _Loop, points: Cloud, rule: DegreeRule) -> bool:
+    """Whether ``one``'s selected degree measures better than ``other``'s on ``points``: a higher
+    F-score, and clean there unless ``other``'s is not either (a sheet grown through strays the
+    score missed is spurious on them; a fit that is clean is never traded for one that is not)."""
+    def measured(loop: _Loop) -> tuple[bool, float]:
+        q = quality(loop.results[loop.index].polynomial, points)
+        return bool(rule.is_clean(q)), q.f_score
 
-    Each is its own loop's choice, clean there where a degree was; a zero set that strays from
-    ``points`` (a sheet through strays the score missed) loses precision on them."""
-    def f_score(loop: _Loop) -> float:
-        return quality(loop.results[loop.index].polynomial, points).f_score
-    return f_score(one) > f_score(other)
+    (one_clean, one_f), (other_clean, other_f) = measured(one), measured(other)
+    return one_f > other_f and (one_clean or not other_clean)
 
 
 def _degree_loop(cloud: Cloud, unit, settings: _LoopSettings, generator) -> _Loop:
