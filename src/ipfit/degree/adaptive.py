@@ -461,9 +461,9 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
                 loop = dataclasses.replace(plain, message=f"{plain.message}; weights: the outlier score's alone (the "
                                                           "fit with the normals' support on them measured lower)")
             else:
-                loop = dataclasses.replace(loop, message=f"{loop.message}; weights: the outlier score's times the "
-                                                         "normals' support (the fit with the score's alone measured "
-                                                         "no better)")
+                loop = dataclasses.replace(supported, message=f"{supported.message}; weights: the outlier score's "
+                                                              "times the normals' support (the fit with the "
+                                                              "score's alone measured no better)")
     chosen = loop.results[loop.index]
     name = method if isinstance(method, str) else getattr(method, "__name__", "custom")
     success = loop.reason != "interrupted" and rule.success(loop.results, loop.index)
