@@ -136,6 +136,41 @@ def test_mesh_topology_components_genus_and_confidence():
     assert (t.components, t.open, t.genus, t.confidence) == (1, 1, (0,), "medium")
 
 
+def test_open_mesh_is_compared_as_the_closed_surface_its_capped_holes_bound():
+    import trimesh
+
+    sphere = trimesh.creation.icosphere(3)
+    data = data_topology(Cloud(sphere.vertices, faces=sphere.faces[8:]))  # a sphere with a hole
+    assert data.capped and (data.components, data.open, data.genus) == (1, 1, (0,))
+    box = [[-1.5, 1.5]] * 3
+    closed = zero_set_topology(extract_zero_set(synthetic.sphere().polynomial, bounds=box, resolution=40))
+    assert (closed.open, closed.genus) == (0, (0,))
+    assert data.matches(closed) is True and describe_mismatch(closed, data) == ""
+    # a plane through the box is open where the box cuts it: not the closed surface the mesh bounds
+    plane = synthetic.from_terms(3, 2, {(0, 0, 1): 1.0, (0, 0, 0): -0.1})
+    cut = zero_set_topology(extract_zero_set(plane, bounds=box, resolution=40))
+    assert (cut.components, cut.open, cut.genus) == (1, 1, ())
+    assert data.matches(cut) is False
+    assert describe_mismatch(cut, data) == "1 open surface where the data (estimated) has none, its holes capped"
+    # a mesh closed as given is compared as it is, openness included
+    whole = data_topology(Cloud(sphere.vertices, faces=sphere.faces))
+    assert not whole.capped and describe_mismatch(cut, whole) == "1 open surface where the data has none"
+
+
+def test_a_mesh_component_of_unknown_genus_matches_any_genus_but_not_another_count():
+    # a closed mesh whose χ is odd (a pinched vertex, a non-orientable part) leaves its genus open
+    data = Topology(3, 2, euler=(1, 2), genus=(None, 0), source="mesh", confidence="high")
+    assert data.matches(Topology(3, 2, euler=(2, 2), genus=(0, 0))) is True
+    assert data.matches(Topology(3, 2, euler=(0, 2), genus=(0, 1))) is True
+    assert data.matches(Topology(3, 2, euler=(0, 0), genus=(1, 1))) is False  # the known genus 0 is missing
+    assert data.matches(Topology(3, 1, euler=(2,), genus=(0,))) is False
+    assert data.matches(Topology(3, 3, euler=(2, 2, 2), genus=(0, 0, 0))) is False
+    # known genera are compared as before
+    torus = Topology(3, 1, euler=(0,), genus=(1,), source="mesh", confidence="high")
+    assert torus.matches(Topology(3, 1, euler=(0,), genus=(1,))) is True
+    assert torus.matches(Topology(3, 1, euler=(2,), genus=(0,))) is False
+
+
 def test_bare_3d_cloud_counts_components():
     s = synthetic.sphere(400)
     two = np.vstack([s.points, s.points + [4.0, 0.0, 0.0]])  # 2 apart: wider than 6 spacings

@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections import Counter
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from typing import Any
@@ -121,23 +122,31 @@ class Topology:
         return self.components - self.open
 
     @property
+    def capped(self) -> bool:
+        """Whether this is an open mesh of the data standing for the closed surface its holes,
+        capped, bound (its genus is that surface's; its openness is not compared)."""
+        return self.dim == 3 and self.source == "mesh" and self.open > 0
+
+    @property
     def known(self) -> bool:
         """Whether the degree rules hold this topology against a zero set (:data:`ENFORCED`)."""
         return CONFIDENCES.index(self.confidence) <= CONFIDENCES.index(ENFORCED)
 
     def matches(self, other: Topology) -> bool | None:
         """Whether ``other`` (a zero set's) has this topology (the data's); None when this one is
-        not known well enough to say ("low" or "unknown"). What this one leaves out (a bare 3D
-        cloud's genus, empty here) is not compared."""
+        not known well enough to say ("low" or "unknown"). What this one leaves out is not
+        compared: a bare 3D cloud's genus (empty here), and the genus of a mesh's component whose χ
+        is odd (None: a pinched or non-orientable mesh, whose genus no zero set can have)."""
         if self.confidence in ("low", "unknown"):
             return None
-        # an open mesh stands for the closed surface its holes capped bound: its openness is not compared
-        capped = self.dim == 3 and self.source == "mesh" and self.open > 0
-        if self.components != other.components or (not capped and self.open != other.open):
+        if self.components != other.components or (not self.capped and self.open != other.open):
             return False
         if self.dim == 2:
             return self.nesting == other.nesting if self.nesting or not self.loops else True
-        return sorted(map(_genus_key, self.genus)) == sorted(map(_genus_key, other.genus)) if self.genus else True
+        if not self.genus:
+            return True
+        known = Counter(g for g in self.genus if g is not None)
+        return len(other.genus) == len(self.genus) and not known - Counter(map(_genus_key, other.genus))
 
     def describe(self) -> str:
         """In words, as the terminal says it: '5 loops', '1 loop and 1 arc', '2 surfaces (genus 0, 1)'."""
@@ -193,7 +202,9 @@ def describe_mismatch(topology: Topology, data: Topology) -> str:
                 f"nested {_depths(data.nesting)}")
     if topology.components != data.components:
         return f"{_count(topology.components, 'surface')} where the data{estimated} has {data.components}"
-    if topology.open != data.open:
+    if data.capped and topology.open:  # compared with the closed surface the capped mesh bounds
+        return f"{_count(topology.open, 'open surface')} where the data{estimated} has none, its holes capped"
+    if not data.capped and topology.open != data.open:
         return f"{_count(topology.open, 'open surface')} where the data{estimated} has {data.open or 'none'}"
     return f"genus {_genera(topology.genus)} where the data{estimated} has genus {_genera(data.genus)}"
 
