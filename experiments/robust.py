@@ -455,12 +455,15 @@ def markdown(meta: dict, rows: list[dict]) -> str:
         "`ipfit.zeroset.quality.quality` (τ = 2% of the box diagonal; a contour's segments, a mesh's faces); spurious "
         "components are counted beyond specks (`ipfit.degree.rules.is_speck`). A pipeline that raised counts as F = 0."),
         "",
-        "* **today**: `fit_adaptive(points)` (`ipfit fit FILE`), normals estimated"
-        + (", `outliers=\"none\"`" if meta.get("outlier_keyword") else "") + ";",
-        (f"* **sor**: statistical outlier removal as Open3D's `remove_statistical_outlier(nb_neighbors="
-        f"{SOR_NEIGHBOURS}, std_ratio={SOR_STD_RATIO:g})` ({meta['open3d_check']}), then today's pipeline;"),
-        "* **robust**: `fit_adaptive(points, outliers=\"auto\")`"
-        + ("." if "robust" in pipelines else f" — {meta.get('robust_note', 'not run')}."),
+        *([f"Where the shapes come from: {meta['source']}", ""] if meta.get("source") else []),
+        *[text for name, text in (
+            ("today", "* **today**: `fit_adaptive(points)` (`ipfit fit FILE`), normals estimated"
+             + (", `outliers=\"none\"`" if meta.get("outlier_keyword") else "") + ";"),
+            ("sor", f"* **sor**: statistical outlier removal as Open3D's `remove_statistical_outlier(nb_neighbors="
+             f"{SOR_NEIGHBOURS}, std_ratio={SOR_STD_RATIO:g})` ({meta['open3d_check']}), then today's pipeline;"),
+            ("robust", "* **robust**: `fit_adaptive(points, outliers=\"auto\")`"
+             + ("." if "robust" in pipelines else f" — {meta.get('robust_note', 'not run')}.")))
+          if name in pipelines or (name == "robust" and meta.get("robust_note"))],
         "",
         ("*Outliers true / found*: the median planted share of the cloud, and of the points the pipeline set aside; "
         "*planted found*: the median share of the planted outliers among them; *false alarms*: the median share "
@@ -525,6 +528,8 @@ def main(argv=None) -> int:
     parser.add_argument("--out", default="docs/robust.md")
     parser.add_argument("--resume", action="store_true", help="keep the rows of the JSON and run the missing cases")
     parser.add_argument("--page-only", action="store_true", help="rewrite the Markdown from the JSON alone")
+    parser.add_argument("--source", help="where the shapes come from, a sentence for the page (with --page-only: "
+                                         "replaces the stored one)")
     parser.add_argument("--redo", action="store_true",
                         help="with --resume: fit this command's shapes again, replacing their stored rows")
     args = parser.parse_args(argv)
@@ -532,6 +537,15 @@ def main(argv=None) -> int:
     json_path = out.with_suffix(".json")
     if args.page_only:
         stored = json.loads(json_path.read_text(encoding="utf-8"))
+        if args.source is not None:  # page text only: the run's command with it gives this very page
+            meta = stored["meta"]
+            meta["source"] = args.source
+            words = shlex.split(meta["command"])
+            if "--source" in words:
+                at = words.index("--source")
+                del words[at:at + 2]
+            meta["command"] = shlex.join([*words, "--source", args.source])
+            write_json(json_path, meta, stored["rows"])
         out.write_text(markdown(stored["meta"], stored["rows"]), encoding="utf-8")
         print(f"wrote {out}")
         return 0
@@ -558,7 +572,7 @@ def main(argv=None) -> int:
             "shapes": [Path(s).name if Path(s).exists() else s for s in args.shapes]
             + [f"every {args.every}"] * (args.every > 1) + [f"at most {args.limit} each"] * (args.limit is not None),
             "conditions": args.conditions, "pipelines": pipelines, "outlier_keyword": has_keyword,
-            "robust_note": note, "corrupt_check": check,
+            "robust_note": note, "corrupt_check": check, "source": args.source,
             "open3d_check": check_open3d(corrupt(first, specs[0][1], *CONDITIONS["outliers-25"])[0])}
     done, before = [], 0.0
     if args.resume and json_path.exists():

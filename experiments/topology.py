@@ -4,6 +4,8 @@ Usage::
 
     PYTHONPATH=src python experiments/topology.py [--dev ../shared/data] [--every 1] [--workers 2]
                                                   [--out docs/topology.md] [--from-json docs/topology.json]
+    PYTHONPATH=src python experiments/topology.py --meshes FILE [FILE ...] --only-meshes \
+                                                  --out docs/topology-external.md
 
 For every shape it fits the recommended pipeline (``ipfit fit``: the capture rule) three ways,
 with seed 0:
@@ -23,7 +25,9 @@ Shapes: the MPEG-7 development contours (``mpeg7-dev``, every ``--every``-th), t
 development meshes (``turk-dev``), the bundled shapes, and two silhouettes made here:
 scikit-image's horse (``skimage.data.horse()`` as a PNG) and the "&" of DejaVu Sans Bold
 (matplotlib's TextPath, filled even-odd; the same files as ``tests/data/horse.png`` and
-``tests/data/ampersand.png``). Rows go to ``--out`` with a ``.json`` twin.
+``tests/data/ampersand.png``). ``--meshes`` adds shapes from elsewhere (any file ``ipfit.load``
+reads; set "external"), and ``--only-meshes`` fits those alone: shapes nobody here tuned to, for
+the issue's held-out targets. Rows go to ``--out`` with a ``.json`` twin.
 """
 
 from __future__ import annotations
@@ -31,6 +35,7 @@ from __future__ import annotations
 import argparse
 import json
 import platform
+import shlex
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -41,6 +46,7 @@ import numpy as np
 
 REPO = Path(__file__).resolve().parent.parent
 BUNDLED = ("boot", "airplane", "butterfly", "apple", "duck", "bunny")
+GROUPS = ("mpeg7-dev", "turk-dev", "bundled", "silhouette", "external")
 
 
 def horse_png(path: Path) -> None:
@@ -128,12 +134,15 @@ def _before_rule():
     return Before()
 
 
-def _jobs(dev: Path, every: int, images: Path) -> list[tuple[str, str]]:
+def _jobs(dev: Path, every: int, images: Path, meshes=(), only_meshes: bool = False) -> list[tuple[str, str]]:
+    extra = [("external", str(p)) for p in meshes]
+    if only_meshes:
+        return extra
     jobs = [("mpeg7-dev", str(p)) for p in sorted((dev / "mpeg7-dev").glob("*.csv"))[::every]]
     jobs += [("turk-dev", str(p)) for p in sorted((dev / "turk-dev").glob("*.ply"))]
     jobs += [("bundled", name) for name in BUNDLED]
     jobs += [("silhouette", str(images / "horse.png")), ("silhouette", str(images / "ampersand.png"))]
-    return jobs
+    return jobs + extra
 
 
 def _cell(run: dict, confidence: str) -> str:
@@ -164,27 +173,42 @@ def _notes(rows: list[dict]) -> list[str]:
     by_name = {r["shape"]: r for r in rows}
     closed = [r for r in rows if r["group"] == "turk-dev" and r["confidence"] == "high"]
     counts = {key: sum(r[key]["matches"] is True for r in contours) for key, _ in RUNS}
-    out = [f"- One outline each (the MPEG-7 development contours): the selected zero set has exactly one loop "
-           f"on {counts['default']} of {len(contours)} by default, {counts['before']} before, {counts['after']} "
-           "with the strict rule (specks counted as loops unless `is_speck` leaves them out)."]
+    out = []
+    if contours:
+        out.append(f"- One outline each (the MPEG-7 development contours): the selected zero set has exactly one "
+                   f"loop on {counts['default']} of {len(contours)} by default, {counts['before']} before, "
+                   f"{counts['after']} with the strict rule (specks counted as loops unless `is_speck` leaves "
+                   "them out).")
     for name in ("horse", "ampersand"):
         if name in by_name:
             r = by_name[name]
             out.append(f"- {name}: by default {r['default']['topology']}, F {r['default']['f_score']:.3f} at degree "
                        f"{r['default']['degree']} (before: {r['before']['topology']}, F {r['before']['f_score']:.3f}; "
                        f"strict: {r['after']['topology']}, F {r['after']['f_score']:.3f}).")
-    out.append("- The \"&\" of DejaVu Sans Bold has one counter, not two: its outline and one hole (the glyph's "
-               "TextPath has two polygons), so its target is 2 loops, one inside the other.")
-    out.append(f"- Turk meshes: {len(closed)} of 12 are closed with parts that do not pass through each other "
-               "(known with confidence); the others are open (their holes capped, an estimate) or made of parts "
-               "that intersect (unknown). "
-               + ", ".join(f"{r['shape']}: {r['data']} in the data, {r['default']['topology']} selected"
-                           for r in closed)
-               + ": no degree tried comes apart into the mesh's separate parts, so no degree has the data's "
-               "topology and the choice stays (the strict rule keeps the best F-score, as before).")
+    if "ampersand" in by_name:
+        out.append("- The \"&\" of DejaVu Sans Bold has one counter, not two: its outline and one hole (the "
+                   "glyph's TextPath has two polygons), so its target is 2 loops, one inside the other.")
+    external = [r for r in rows if r["group"] == "external"]
+    if external:
+        known = [r for r in external if r["confidence"] == "high"]
+        out.append(f"- External meshes: {len(known)} of {len(external)} are closed with parts that do not pass "
+                   "through each other (known with confidence); by default the selected surface has the mesh's "
+                   f"components and genus on {sum(r['default']['matches'] is True for r in known)} of them. "
+                   + "".join(f"{r['shape']}: {r['data']} in the data, {r['default']['topology']} selected "
+                             f"(F {r['default']['f_score']:.3f}); " for r in known
+                             if r["default"]["matches"] is False).rstrip("; ") + ".")
+    if any(r["group"] == "turk-dev" for r in rows):
+        out.append(f"- Turk meshes: {len(closed)} of 12 are closed with parts that do not pass through each other "
+                   "(known with confidence); the others are open (their holes capped, an estimate) or made of parts "
+                   "that intersect (unknown). "
+                   + ", ".join(f"{r['shape']}: {r['data']} in the data, {r['default']['topology']} selected"
+                               for r in closed)
+                   + ": no degree tried comes apart into the mesh's separate parts, so no degree has the data's "
+                   "topology and the choice stays (the strict rule keeps the best F-score, as before).")
     wrong_default = [r for r in rows if r["confidence"] == "high" and r["default"]["matches"] is False]
     if wrong_default:
-        out.append(f"- The default keeps another topology than the data's on {len(wrong_default)} shapes where "
+        shapes = "1 shape" if len(wrong_default) == 1 else f"{len(wrong_default)} shapes"
+        out.append(f"- The default keeps another topology than the data's on {shapes} where "
                    "no degree of the data's topology (as fitted or repaired) comes within the rule's tolerance "
                    "of the best clean F-score (the strict rule's F there): "
                    + ", ".join(f"{r['shape']} ({r['default']['f_score']:.3f}; {r['after']['f_score']:.3f})"
@@ -208,11 +232,14 @@ def _notes(rows: list[dict]) -> list[str]:
     return out
 
 
-def markdown(rows: list[dict], every: int, command: str) -> str:
+def markdown(rows: list[dict], every: int, command: str, source: str | None = None) -> str:
+    only_external = all(r["group"] == "external" for r in rows)
     out = ["# Topology of the selected zero set (issue 31)", "",
-           f"Regenerate with `{command}` (about 25 min on 2 cores); "
+           f"Regenerate with `{command}`" + ("" if only_external else " (about 25 min on 2 cores)") + "; "
            f"{date.today().isoformat()}, Python {platform.python_version()}, seed 0. "
-           "Development data, not held out.", "",
+           + ("Meshes from outside the project, which nobody here tuned to." if only_external
+              else "Development data, not held out."), "",
+           *([f"Where the shapes come from: {source}", ""] if source else []),
            "Each shape is fitted with the recommended pipeline three ways: **before** (the capture rule as it "
            "was: the topology reported, not held), **default** (`ipfit fit` now: when the capture rule's choice "
            "has another topology than the data's, the lowest degree of the data's topology within the rule's "
@@ -228,14 +255,14 @@ def markdown(rows: list[dict], every: int, command: str) -> str:
            "other). A shape whose strict run never met a degree of the wrong topology is not run "
            "again: its *before* and *default* are the same fit. Seconds are wall-clock with two fits side by "
            "side on 2 shared cores.", ""]
-    if every > 1:
+    if every > 1 and not only_external:
         nth = {2: "2nd", 3: "3rd"}.get(every, f"{every}th")
         out += [f"The MPEG-7 development set is subsampled: every {nth} of its 140 contours "
                 "(all of them would take too long on the 2 shared cores).", ""]
     out += ["| set | shapes | known (high) | correct before | default | strict | median F before | default "
             "| strict | F drop > 0.01: default | strict | median s before | default | strict |",
             "|---" * 14 + "|"]
-    for group in ("mpeg7-dev", "turk-dev", "bundled", "silhouette"):
+    for group in GROUPS:
         part = [r for r in rows if r["group"] == group]
         if not part:
             continue
@@ -267,23 +294,36 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--out", type=Path, default=REPO / "docs" / "topology.md")
     parser.add_argument("--from-json", type=Path)
+    parser.add_argument("--meshes", type=Path, nargs="+", default=[],
+                        help="more shapes (any file ipfit.load reads), the set 'external'")
+    parser.add_argument("--only-meshes", action="store_true", help="fit the --meshes alone")
+    parser.add_argument("--source", help="where the --meshes come from, a sentence for the page")
     args = parser.parse_args()
-    command = f"PYTHONPATH=src python experiments/topology.py --every {args.every}"
+    if args.only_meshes and not args.meshes:
+        parser.error("--only-meshes needs --meshes FILE [FILE ...]")
+    command = "PYTHONPATH=src python experiments/topology.py " + (
+        "" if args.only_meshes else f"--every {args.every} ") + (
+        f"--meshes {' '.join(str(p) for p in args.meshes)} " if args.meshes else "") + (
+        "--only-meshes " if args.only_meshes else "") + (
+        f"--out {args.out.relative_to(REPO) if args.out.is_absolute() and args.out.is_relative_to(REPO) else args.out}"
+        if args.out != REPO / "docs" / "topology.md" else "")
+    command = command.strip() + (f" --source {shlex.quote(args.source)}" if args.source else "")
     if args.from_json:
         rows = json.loads(args.from_json.read_text())
     else:
         images = REPO / "tests" / "data"
         rows = []
         with ProcessPoolExecutor(args.workers) as pool:
-            futures = [pool.submit(fit_one, *job) for job in _jobs(args.dev, args.every, images)]
+            jobs = _jobs(args.dev, args.every, images, args.meshes, args.only_meshes)
+            futures = [pool.submit(fit_one, *job) for job in jobs]
             for done in as_completed(futures):
                 row = done.result()
                 rows.append(row)
                 print(json.dumps(row), flush=True)
-        order = {g: i for i, g in enumerate(("mpeg7-dev", "turk-dev", "bundled", "silhouette"))}
+        order = {g: i for i, g in enumerate(GROUPS)}
         rows.sort(key=lambda r: (order[r["group"]], r["shape"]))
         args.out.with_suffix(".json").write_text(json.dumps(rows, indent=1))
-    args.out.write_text(markdown(rows, args.every, command))
+    args.out.write_text(markdown(rows, args.every, command, args.source))
     print(f"wrote {args.out}", file=sys.stderr)
 
 
