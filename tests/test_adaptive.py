@@ -1,11 +1,15 @@
 """Algorithm 1: the stopping rule on synthetic smoothness paths and on real fits."""
 
+import re
+import warnings
+
 import numpy as np
 import pytest
 
 import ipfit
 from ipfit.degree.adaptive import fit_adaptive, select_degree
 from ipfit.datasets import synthetic
+from ipfit.exceptions import IpfitWarning
 
 
 @pytest.mark.parametrize("smoothness,expected,reason", [
@@ -354,3 +358,29 @@ def test_the_loop_gives_a_degree_its_missing_surface_round_when_the_rule_asks():
     # the round is kept only when it is clean and raises the F-score
     assert asked.degrees[0].quality.f_score >= asked.degrees[0].cleanup[-1]["f_score"] or \
         not asked.degrees[0].cleanup[-1]["clean"]
+
+
+
+def _caught(pts) -> list[warnings.WarningMessage]:
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        result = fit_adaptive(pts, method="3l", max_degree=2, rng=0)
+    assert result.selected_degree == 2  # the fit goes on: the plane is its answer
+    return [w for w in caught if issubclass(w.category, IpfitWarning) and "lie on one plane" in str(w.message)]
+
+
+def test_a_flat_3d_cloud_is_fitted_with_a_warning_that_names_its_plane():
+    # an ellipse saved as 3D points with z = 0, then turned and moved: its surface can only be its plane
+    shape = synthetic.ellipse(200)
+    flat = np.c_[shape.points, np.zeros(len(shape.points))]
+    turn = np.linalg.qr(np.random.default_rng(0).standard_normal((3, 3)))[0]
+    for pts, normal in ((flat, np.array([0.0, 0.0, 1.0])), (flat @ turn.T + 5.0, turn[:, 2])):
+        (caught,) = _caught(pts)
+        text = str(caught.message)
+        assert text.startswith("points: all 200 lie on one plane") and "2D coordinates" in text
+        stated = np.array([float(v) for v in re.search(r"normal ([^)]*)\)", text).group(1).split(",")])
+        assert abs(abs(stated @ normal) / np.linalg.norm(stated) - 1) < 1e-3
+    # a thin but solid slab is not flat: no warning
+    slab = flat.copy()
+    slab[:, 2] = np.random.default_rng(1).normal(scale=1e-4, size=len(slab))
+    assert _caught(slab) == []

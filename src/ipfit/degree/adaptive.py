@@ -11,6 +11,7 @@ from __future__ import annotations
 import copy
 import dataclasses
 import time
+import warnings
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any, cast
@@ -35,6 +36,7 @@ from .._utils.validation import (
     error,
 )
 from ..cloud import Cloud, as_cloud
+from ..exceptions import IpfitWarning
 from ..fitting.farfield import confident_mask
 from ..fitting.linear import LINEAR_METHODS, fit_linear
 from ..fitting.objective import Measures
@@ -278,6 +280,24 @@ def _check_progress(progress):
     return progress
 
 
+# A 3D cloud is flat when its spread across its best plane is below this share of its widest
+# spread: far below any scan's noise (a sheet of paper: 3e-4), above the rounding of a 2D outline
+# or mesh saved with z = 0 and then turned (1e-8 through the covariance).
+_FLAT_SPREAD = 1e-6
+
+
+def _warn_if_flat(pts: NDArray[np.float64]) -> None:
+    """Warn when every point lies on one plane: each degree's zero set is then that plane (or
+    holds it), whatever the shape the points outline, and the fit cannot say so itself."""
+    centred = pts - pts.mean(axis=0)
+    values, vectors = np.linalg.eigh(centred.T @ centred)
+    if values[0] <= _FLAT_SPREAD ** 2 * values[-1]:
+        normal = ", ".join(f"{v:.3g}" for v in vectors[:, 0] * np.sign(vectors[np.argmax(np.abs(vectors[:, 0])), 0]))
+        warnings.warn(f"points: all {len(pts):,} lie on one plane (normal {normal}), so the fitted surface is that "
+                      "plane at every degree. To fit their outline, give their 2D coordinates in the plane "
+                      "(the x and y columns when z is constant).", IpfitWarning, stacklevel=3)
+
+
 def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
                  method: str | FitFunction = DEFAULT_METHOD, options: SearchOptions | None = None,
                  max_degree: int | None = None, min_degree: int = 2,
@@ -384,6 +404,8 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
         pts = as_points(points)
     check_coordinates(pts)  # the result must be readable: refuse up front what it could not record
     dim = pts.shape[1]
+    if dim == 3:
+        _warn_if_flat(pts)
     method, options, rule, epsilon, delta, min_degree = check_settings(method, options, rule, epsilon, delta,
                                                                        min_degree, max_degree)
     outliers = check_outliers(outliers)
