@@ -442,6 +442,15 @@ def markdown(meta: dict, rows: list[dict]) -> str:
     dims = sorted({r["dim"] for r in rows})
     n_shapes = {d: len({r["shape"] for r in rows if r["dim"] == d}) for d in dims}
     shapes_text = " and ".join(f"{n_shapes[d]} {'2D contours' if d == 2 else '3D meshes'}" for d in dims)
+    # the pipelines run (and the robust one's note when it was skipped)
+    described = {
+        "today": "* **today**: `fit_adaptive(points)` (`ipfit fit FILE`), normals estimated"
+                 + (", `outliers=\"none\"`" if meta.get("outlier_keyword") else "") + ";",
+        "sor": f"* **sor**: statistical outlier removal as Open3D's `remove_statistical_outlier(nb_neighbors="
+               f"{SOR_NEIGHBOURS}, std_ratio={SOR_STD_RATIO:g})` ({meta['open3d_check']}), then today's pipeline;",
+        "robust": "* **robust**: `fit_adaptive(points, outliers=\"auto\")`"
+                  + ("." if "robust" in pipelines else f" — {meta.get('robust_note', 'not run')}."),
+    }
     lines = [
         "# Real clouds: outliers, noise and no normals",
         "",
@@ -456,14 +465,7 @@ def markdown(meta: dict, rows: list[dict]) -> str:
         "components are counted beyond specks (`ipfit.degree.rules.is_speck`). A pipeline that raised counts as F = 0."),
         "",
         *([f"Where the shapes come from: {meta['source']}", ""] if meta.get("source") else []),
-        *[text for name, text in (
-            ("today", "* **today**: `fit_adaptive(points)` (`ipfit fit FILE`), normals estimated"
-             + (", `outliers=\"none\"`" if meta.get("outlier_keyword") else "") + ";"),
-            ("sor", f"* **sor**: statistical outlier removal as Open3D's `remove_statistical_outlier(nb_neighbors="
-             f"{SOR_NEIGHBOURS}, std_ratio={SOR_STD_RATIO:g})` ({meta['open3d_check']}), then today's pipeline;"),
-            ("robust", "* **robust**: `fit_adaptive(points, outliers=\"auto\")`"
-             + ("." if "robust" in pipelines else f" — {meta.get('robust_note', 'not run')}.")))
-          if name in pipelines or (name == "robust" and meta.get("robust_note"))],
+        *[text for name, text in described.items() if name in pipelines or (name == "robust" and meta.get("robust_note"))],
         "",
         ("*Outliers true / found*: the median planted share of the cloud, and of the points the pipeline set aside; "
         "*planted found*: the median share of the planted outliers among them; *false alarms*: the median share "

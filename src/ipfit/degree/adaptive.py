@@ -292,8 +292,9 @@ def _warn_if_flat(pts: NDArray[np.float64]) -> None:
     centred = pts - pts.mean(axis=0)
     values, vectors = np.linalg.eigh(centred.T @ centred)
     if values[0] <= _FLAT_SPREAD ** 2 * values[-1]:
-        normal = ", ".join(f"{v:.3g}" for v in vectors[:, 0] * np.sign(vectors[np.argmax(np.abs(vectors[:, 0])), 0]))
-        warnings.warn(f"points: all {len(pts):,} lie on one plane (normal {normal}), so the fitted surface is that "
+        normal = vectors[:, 0] * np.sign(vectors[np.argmax(np.abs(vectors[:, 0])), 0])  # its largest part > 0
+        text = ", ".join(f"{v:.3g}" for v in normal)
+        warnings.warn(f"points: all {len(pts):,} lie on one plane (normal {text}), so the fitted surface is that "
                       "plane at every degree. To fit their outline, give their 2D coordinates in the plane "
                       "(the x and y columns when z is constant).", IpfitWarning, stacklevel=3)
 
