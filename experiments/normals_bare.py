@@ -3,6 +3,7 @@
 Usage::
 
     python experiments/normals_bare.py [--only NAME ...] [--fit] [--out FILE.md] [--turk DIR]
+                                       [--meshes FILE ...] [--noise SIGMA] [--wide]
 
 For the 12 meshes of ``../shared/data/turk-dev`` (vertices as ``trimesh.load(f, force='mesh',
 process=True)`` merges them) and the bundled apple and duck (``ipfit.load``): per shape,
@@ -19,6 +20,16 @@ shape twice (``ipfit.fit_adaptive(X, normals, rng=0, outliers="none")``, with th
 and with the estimated ones) and scores both against the mesh
 (``ipfit.zeroset.quality.quality(poly, ipfit.Cloud(X, faces=F))``): F, precision, recall, the
 degree. A fit takes 20-50 s on two busy cores: pass ``--only`` with a few names.
+
+``--meshes`` adds mesh files (their vertices and vertex normals, read as the Turk meshes are).
+``--noise SIGMA`` corrupts each shape's vertices as issue 30's protocol does (Gaussian noise of
+SIGMA × the box diagonal, shuffled: ``experiments/robust.py``'s ``corrupt``, the very points of
+``../shared/tools/corrupt.py``); a noisy point's reference is the normal of its nearest clean
+vertex, and ``--fit`` scores the fits of the noisy points against the clean mesh. ``--wide``
+adds the estimate with the noisy-data path forced in 3D (``ipfit.normals.scale._GAIN`` set to
+infinity: every point's neighbourhood grown to its flattest local scale and the signs propagated
+on the denoised coarse sample, even where no wider neighbourhood is flatter): columns ``flip
+wide`` and, with ``--fit``, ``F wide`` (docs/normals-noise.md).
 
 The reference's signs are outward wherever a ray along them escapes the mesh and one against
 them does not (checked: at most 0.5 % inward, 5 % on walkman); walkman's vertices repeat with
@@ -40,20 +51,47 @@ TURK = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "turk-de
 BUNDLED = ("apple", "duck")
 
 
-def shapes(only, turk: Path):
-    """(name, points, mesh normals, faces) of every shape, or of those named in ``only``."""
+def shapes(only, turk: Path, meshes=(), noisy: bool = False):
+    """(name, file, points, mesh normals, faces) of every shape, or of those named in ``only``
+    (``noisy``: every shape read as ``corrupt.py`` reads it, the bundled ones too)."""
     import trimesh
 
-    names = [p.stem for p in sorted(turk.glob("*.ply"))] + list(BUNDLED)
-    for name in names:
+    from ipfit.datasets.bundled import dataset_path
+
+    files = {p.stem: p for p in sorted(turk.glob("*.ply"))} | {Path(m).stem: Path(m) for m in meshes}
+    for name in [*files, *BUNDLED]:
         if only and name not in only:
             continue
-        if name in BUNDLED:
+        if name in BUNDLED and not noisy:
             cloud = ipfit.load(name)
-            yield name, np.asarray(cloud.points), np.asarray(cloud.normals), np.asarray(cloud.faces)
+            yield name, None, np.asarray(cloud.points), np.asarray(cloud.normals), np.asarray(cloud.faces)
         else:
-            mesh = trimesh.load(turk / f"{name}.ply", force="mesh", process=True)
-            yield name, np.asarray(mesh.vertices, float), np.asarray(mesh.vertex_normals, float), np.asarray(mesh.faces)
+            path = dataset_path(name) if name in BUNDLED else files[name]
+            mesh = trimesh.load(path, force="mesh", process=True)
+            yield (name, path, np.asarray(mesh.vertices, float), np.asarray(mesh.vertex_normals, float),
+                   np.asarray(mesh.faces))
+
+
+def corrupted(points, normals, path: Path, noise: float):
+    """issue 30's noisy cloud of ``points`` (robust.corrupt) and each noisy point's reference normal."""
+    from scipy.spatial import cKDTree
+
+    from robust import corrupt
+
+    noisy, _ = corrupt(points, str(path), noise, 0.0)
+    return noisy, normals[cKDTree(points).query(noisy)[1]]
+
+
+def wide_estimate(points):
+    """estimate_normals with the noisy-data path forced in 3D (see --wide)."""
+    from ipfit.normals import scale
+
+    kept = scale._GAIN
+    scale._GAIN = float("inf")
+    try:
+        return ipfit.estimate_normals(points)
+    finally:
+        scale._GAIN = kept
 
 
 def compare(estimated, reference) -> dict:
@@ -69,9 +107,9 @@ def compare(estimated, reference) -> dict:
             "flip": float(np.mean(cos[right] < 0)) if right.any() else float("nan")}
 
 
-def fit_scores(points, normals, faces) -> dict:
+def fit_scores(points, normals, reference) -> dict:
     result = ipfit.fit_adaptive(points, normals, rng=0, outliers="none")
-    q = quality(result.polynomial, ipfit.Cloud(points, faces=faces))
+    q = quality(result.polynomial, reference)
     return {"F": q.f_score, "P": q.precision, "R": q.recall, "deg": result.polynomial.degree}
 
 
@@ -81,21 +119,34 @@ def main(argv=None) -> None:
     parser.add_argument("--fit", action="store_true")
     parser.add_argument("--out", type=Path, default=None)
     parser.add_argument("--turk", type=Path, default=TURK, help="the turk-dev folder (default: ../shared/...)")
+    parser.add_argument("--meshes", nargs="*", default=[], help="more mesh files")
+    parser.add_argument("--noise", type=float, default=0.0, help="issue 30's noise, a share of the box diagonal")
+    parser.add_argument("--wide", action="store_true", help="also the estimate with the noisy-data path forced")
     args = parser.parse_args(argv)
-    cols = ["cos10", "cos25", "cos50", "cos75", "off60", "flip", "s"]
-    fit_cols = ["F mesh", "P mesh", "R mesh", "deg mesh", "F est", "P est", "R est", "deg est"]
+    cols = ["cos10", "cos25", "cos50", "cos75", "off60", "flip", "s"] + (["flip wide"] if args.wide else [])
+    fits = ("mesh", "est") + (("wide",) if args.wide else ())
+    fit_cols = [f"{key} {label}" for label in fits for key in ("F", "P", "R", "deg")]
     header = ["shape", "N"] + cols + (fit_cols if args.fit else [])
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     rows = []
-    for name, points, mesh_normals, faces in shapes(args.only, args.turk):
+    for name, path, clean, clean_normals, faces in shapes(args.only, args.turk, args.meshes, args.noise > 0):
+        points, mesh_normals = (clean, clean_normals) if args.noise == 0 else \
+            corrupted(clean, clean_normals, path, args.noise)
+        # an unreferenced vertex has no normal: no reference for it (or for a noisy point nearest it)
+        referenced = np.linalg.norm(mesh_normals, axis=1) > 0
+        points, mesh_normals = points[referenced], mesh_normals[referenced]
         start = time.perf_counter()
         estimated = ipfit.estimate_normals(points)
         row = compare(estimated, mesh_normals)
         row["s"] = time.perf_counter() - start
+        normals = {"mesh": mesh_normals, "est": estimated}
+        if args.wide:
+            normals["wide"] = wide_estimate(points)
+            row["flip wide"] = compare(normals["wide"], mesh_normals)["flip"]
         if args.fit:
-            for label, nrm in (("mesh", mesh_normals), ("est", estimated)):
+            for label in fits:
                 start = time.perf_counter()
-                scores = fit_scores(points, nrm, faces)
+                scores = fit_scores(points, normals[label], ipfit.Cloud(clean, faces=faces))
                 row.update({f"{key} {label}": value for key, value in scores.items()})
                 row[f"fit s {label}"] = time.perf_counter() - start
         rows.append(row)
@@ -112,7 +163,29 @@ def main(argv=None) -> None:
     text = "\n".join(lines)
     print(text)
     if args.out:
-        args.out.write_text(text + "\n", encoding="utf-8")
+        import platform
+        import shlex
+        import sys
+        from datetime import date
+
+        command = shlex.join(["python", "experiments/normals_bare.py", *(sys.argv[1:] if argv is None else argv)])
+        legend = ("Columns: *cos10 … cos75*, quantiles of |cos| between the estimated and the mesh's normal lines; "
+                  "*off60*, the share of lines more than 60° off; *flip*, the share of opposite signs among the "
+                  "points whose line is right (|cos| > 0.7); *flip wide*, the same for the estimate with the "
+                  "noisy-data path forced in 3D (`ipfit.normals.scale._GAIN` infinite); *s*, seconds of "
+                  "`estimate_normals`; with `--fit`, *F, P, R, deg* of `fit_adaptive(points, normals, rng=0, outliers=\"none\")` "
+                  "with the mesh's (*mesh*), the estimated (*est*) and the forced path's (*wide*) normals, scored "
+                  "against the clean mesh. A noisy point's reference normal is its nearest clean vertex's; points "
+                  "whose reference normal is zero (unreferenced vertices) are left out. Shapes: "
+                  "`../shared/data/turk-dev` and the meshes named (for `../common-3d-test-models`, see "
+                  "docs/robust-external.md).")
+        head = ["# Estimated normals against the meshes' (issue 30)", "",
+                f"Generated by `{command}` on {date.today().isoformat()} ({platform.machine()}, "
+                f"{platform.processor() or 'cpu'}; Python {platform.python_version()}); fits with seed 0. "
+                "Each row: one shape's bare vertices" + (f" with issue 30's noise of σ = {args.noise:g} × the "
+                "box diagonal" if args.noise else "") + ", their estimated normals against the mesh's.", "",
+                legend, ""]
+        args.out.write_text("\n".join(head) + "\n" + text + "\n", encoding="utf-8")
 
 
 if __name__ == "__main__":
