@@ -39,7 +39,11 @@ the normals of different faces (6,672 rows, 2,106 positions), so its |cos| canno
 from __future__ import annotations
 
 import argparse
+import platform
+import shlex
+import sys
 import time
+from datetime import date
 from pathlib import Path
 
 import numpy as np
@@ -163,11 +167,6 @@ def main(argv=None) -> None:
     text = "\n".join(lines)
     print(text)
     if args.out:
-        import platform
-        import shlex
-        import sys
-        from datetime import date
-
         command = shlex.join(["python", "experiments/normals_bare.py", *(sys.argv[1:] if argv is None else argv)])
         legend = ("Columns: *cos10 … cos75*, quantiles of |cos| between the estimated and the mesh's normal lines; "
                   "*off60*, the share of lines more than 60° off; *flip*, the share of opposite signs among the "

@@ -301,13 +301,13 @@ def main() -> None:
     args = parser.parse_args()
     if args.only_meshes and not args.meshes:
         parser.error("--only-meshes needs --meshes FILE [FILE ...]")
-    command = "PYTHONPATH=src python experiments/topology.py " + (
-        "" if args.only_meshes else f"--every {args.every} ") + (
-        f"--meshes {' '.join(str(p) for p in args.meshes)} " if args.meshes else "") + (
-        "--only-meshes " if args.only_meshes else "") + (
-        f"--out {args.out.relative_to(REPO) if args.out.is_absolute() and args.out.is_relative_to(REPO) else args.out}"
-        if args.out != REPO / "docs" / "topology.md" else "")
-    command = command.strip() + (f" --source {shlex.quote(args.source)}" if args.source else "")
+    words = ["python", "experiments/topology.py"] + ([] if args.only_meshes else ["--every", str(args.every)])
+    words += ["--meshes", *map(str, args.meshes)] if args.meshes else []
+    words += ["--only-meshes"] if args.only_meshes else []
+    if args.out != REPO / "docs" / "topology.md":
+        words += ["--out", str(args.out.relative_to(REPO) if args.out.is_relative_to(REPO) else args.out)]
+    words += ["--source", args.source] if args.source else []
+    command = "PYTHONPATH=src " + shlex.join(words)
     if args.from_json:
         rows = json.loads(args.from_json.read_text())
     else:
