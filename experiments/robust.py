@@ -26,8 +26,9 @@ degree; with the fit's seconds and the share of points each pipeline treated as 
 the planted share. Worker processes (``--jobs``) with one thread each run the cases; each first
 fits a small circle and sphere, so that no timed fit pays for numba's compilation. The rows go to
 ``--out``'s ``.json`` twin as they finish (``--resume`` keeps those and runs the rest);
-``--resume --redo`` fits the command's shapes again and replaces their stored rows (after a change
-that affects only them); ``--page-only`` rewrites the Markdown from that JSON alone.
+``--resume --redo`` fits the command's cases (its shapes under its conditions, by its pipelines)
+again and replaces their stored rows (after a change that affects only them); ``--page-only``
+rewrites the Markdown from that JSON alone.
 
 The default run (140 + 12 + 6 shapes, 6 conditions, 3 pipelines: about 2,800 fits of 5-40 s)
 takes hours on 2 cores; ``--every 5`` takes a fifth of each folder, for a quicker look.
@@ -533,7 +534,8 @@ def main(argv=None) -> int:
     parser.add_argument("--source", help="where the shapes come from, a sentence for the page (with --page-only: "
                                          "replaces the stored one)")
     parser.add_argument("--redo", action="store_true",
-                        help="with --resume: fit this command's shapes again, replacing their stored rows")
+                        help="with --resume: fit this command's cases (its shapes, conditions and pipelines) "
+                             "again, replacing their stored rows")
     args = parser.parse_args(argv)
     out = Path(args.out)
     json_path = out.with_suffix(".json")
@@ -582,7 +584,8 @@ def main(argv=None) -> int:
         done, before = stored["rows"], stored["meta"].get("wall_seconds", 0.0)
         if args.redo:  # the page's command line says so (--redo)
             again = {name for name, _ in specs}
-            done = [r for r in done if r["shape"] not in again]
+            done = [r for r in done if not (r["shape"] in again and r["condition"] in args.conditions
+                                            and r["pipeline"] in pipelines)]
         # the page names every run its rows come from: the earlier command(s), then this one
         if stored["meta"].get("command") and stored["meta"]["command"] != meta["command"]:
             meta["command"] = f"{stored['meta']['command']}` then `{meta['command']} --resume"

@@ -34,7 +34,7 @@ from .orient import orient_graph
 from .poles import doubtful_points, is_uneven, pole_lines
 from .scale import noise_scale, orient_coarse, roughness
 
-__all__ = ["estimate_normals", "contour_normals"]
+__all__ = ["estimate_normals", "contour_normals", "looks_noisy"]
 
 # A 3D point is on a "sampled curve" when its nearest _CURVE_K points (the point and ±3 samples
 # along a curve) are nearly collinear: second singular value below _CURVE_RATIO of the first. A
@@ -331,6 +331,21 @@ def _estimate(pts: NDArray, k, orient: bool, workers: int, want_confidence: bool
         normals = orient_graph(pts, normals, idx, flatness, links, tree=tree,
                                exterior=doubtful if uneven else None, winding=uneven)
     return normals, confidence
+
+
+def looks_noisy(points: NDArray, workers: int = -1) -> bool:
+    """Whether :func:`estimate_normals` takes ``points`` (checked, (N, D)) for noisy data: their
+    k nearest neighbours (of an even probe of a big cloud) spread along the normal as only noise
+    wider than them does (:func:`~ipfit.normals.scale.roughness`). Clean clouds, sparse CAD
+    vertices included, are not."""
+    pts = standardise(points)
+    if len(pts) <= pts.shape[1] + 1:
+        return False
+    tree = cKDTree(pts)
+    k = default_k(None, pts.shape[1], len(pts))
+    at = spread(pts, _NOISY_PROBE) if len(pts) > _NOISY_PROBE else slice(None)
+    probe = neighbours(tree, k, check_workers(workers), pts[at])
+    return roughness(pts, probe, pca_normals(pts, probe)[1]) is not None
 
 
 def _check_inliers(inliers: ArrayLike, n: int) -> NDArray[np.bool_]:
