@@ -557,6 +557,16 @@ def _measures_better(one: _Loop, other: _Loop, points: Cloud, rule: DegreeRule) 
     return one_f > other_f and (one_clean or not other_clean)
 
 
+def _against_gradient(poly: ImplicitPolynomial, points: NDArray, normals: NDArray) -> NDArray[np.bool_]:
+    """Which ``normals`` point against ``poly``'s gradient at points within ``_REORIENT_REACH`` of
+    the box diagonal of its zero set (first-order distance); farther points are never taken."""
+    value, gradient = poly.value_and_gradient(points)
+    reach = _REORIENT_REACH * float(np.linalg.norm(np.ptp(points, axis=0)))
+    with np.errstate(invalid="ignore"):  # a non-finite value or gradient is not near
+        near = np.abs(value) < reach * np.linalg.norm(gradient, axis=1)
+    return near & (np.einsum("ij,ij->i", normals, gradient) < 0)
+
+
 def _reoriented(loop: _Loop, cloud: Cloud, unit, settings: _LoopSettings, generator, total: list[_Loop]) -> _Loop:
     """``loop`` or, if it measures better, the degree loop run again with the normals' signs taken
     from ``loop``'s selected fit (``total`` gets the second loop).
@@ -569,12 +579,7 @@ def _reoriented(loop: _Loop, cloud: Cloud, unit, settings: _LoopSettings, genera
     (docs/robust.md).
     """
     poly = loop.results[loop.index].polynomial
-    value, gradient = poly.value_and_gradient(cloud.points)
-    length = np.linalg.norm(gradient, axis=1)
-    reach = _REORIENT_REACH * float(np.linalg.norm(np.ptp(cloud.points, axis=0)))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        near = np.abs(value) < reach * length
-    flip = near & (np.einsum("ij,ij->i", cloud.oriented, gradient) < 0)
+    flip = _against_gradient(poly, cloud.points, cloud.oriented)
     if flip.sum() <= _REORIENT_FEWEST * len(flip):
         return loop
     signs = np.where(flip, -1.0, 1.0)[:, None]
