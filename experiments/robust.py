@@ -544,11 +544,13 @@ def main(argv=None) -> int:
         if args.source is not None:  # page text only: the run's command with it gives this very page
             meta = stored["meta"]
             meta["source"] = args.source
-            words = shlex.split(meta["command"])
+            # a resumed page's command is its runs' commands joined by "` then `": the first run's takes it
+            first, *rest = meta["command"].split("` then `")
+            words = shlex.split(first)
             if "--source" in words:
                 at = words.index("--source")
                 del words[at:at + 2]
-            meta["command"] = shlex.join([*words, "--source", args.source])
+            meta["command"] = "` then `".join([shlex.join([*words, "--source", args.source]), *rest])
             write_json(json_path, meta, stored["rows"])
         out.write_text(markdown(stored["meta"], stored["rows"]), encoding="utf-8")
         print(f"wrote {out}")
@@ -582,6 +584,8 @@ def main(argv=None) -> int:
     if args.resume and json_path.exists():
         stored = json.loads(json_path.read_text(encoding="utf-8"))
         done, before = stored["rows"], stored["meta"].get("wall_seconds", 0.0)
+        if args.source is None:  # the shapes still come from where the page says
+            meta["source"] = stored["meta"].get("source")
         if args.redo:  # the page's command line says so (--redo)
             again = {name for name, _ in specs}
             done = [r for r in done if not (r["shape"] in again and r["condition"] in args.conditions

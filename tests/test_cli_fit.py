@@ -300,7 +300,7 @@ def test_a_big_cloud_says_it_fitted_the_degrees_on_a_subsample(tmp_path):
     assert "degrees fitted on 50,000 of the 60,000 points spread evenly" in result["adaptive"]["message"]
 
 
-def test_the_second_fit_of_a_weighted_surface_is_announced():
+def test_the_second_fits_of_a_weighted_or_noisy_surface_are_announced():
     import io
 
     from ipfit.cli._progress import Progress
@@ -308,4 +308,7 @@ def test_the_second_fit_of_a_weighted_surface_is_announced():
     stream = io.StringIO()
     Progress("lines", stream=stream)({"event": "weights_variant",
                                       "message": "fitting again, weighted by the outlier score alone"})
-    assert stream.getvalue().splitlines() == ["fitting again, weighted by the outlier score alone"]
+    Progress("lines", stream=stream)({"event": "reorient",
+                                      "message": "1,234 normals turned to the fit's gradient, fitting again"})
+    assert stream.getvalue().splitlines() == ["fitting again, weighted by the outlier score alone",
+                                              "1,234 normals turned to the fit's gradient, fitting again"]
