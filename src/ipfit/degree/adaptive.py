@@ -387,7 +387,7 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
 
     Notes
     -----
-    A noisy 3D cloud (:func:`ipfit.normals.estimate.looks_noisy`) whose normals are estimated
+    A noisy 3D cloud (``ipfit.normals.estimate.looks_noisy``) whose normals are estimated
     is fitted twice: under noise the estimated signs come out wrong on whole regions, and the
     second fit takes, at each point within 5 % of the box diagonal of the first fit's zero set,
     the sign of that fit's gradient; it is kept when it measures better (as the weights'
@@ -576,7 +576,7 @@ def _reoriented(loop: _Loop, cloud: Cloud, unit, settings: _LoopSettings, genera
     diagonal); the fit still follows most of the shape, and a polynomial's gradient is a
     consistent orientation of its whole zero set. Each point within ``_REORIENT_REACH`` of the
     selected zero set takes the sign of the gradient there; the rest keep theirs
-    (docs/robust.md).
+    (docs/reorient.md, docs/reorient-external.md).
     """
     poly = loop.results[loop.index].polynomial
     flip = _against_gradient(poly, cloud.points, cloud.oriented)
