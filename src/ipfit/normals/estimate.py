@@ -290,8 +290,7 @@ def _estimate(pts: NDArray, k, orient: bool, workers: int, want_confidence: bool
     if len(pts) > _NOISY_SAMPLE:
         # A big cloud is tested for noise on a probe of its points; if noisy, its normals are
         # those of an even sample (see estimate_normals), each point taking its nearest's.
-        probe = neighbours(tree, k, workers, pts[spread(pts, _NOISY_PROBE)])
-        if roughness(pts, probe, pca_normals(pts, probe)[1]) is not None:
+        if _probe_is_rough(pts, tree, k, workers):
             sample = spread(pts, _NOISY_SAMPLE)
             say(f"noisy: estimating on an even sample of {len(sample):,} of the {len(pts):,} points")
             normals, confidence = _estimate(pts[sample], k, orient, workers, want_confidence, say)
@@ -341,10 +340,14 @@ def looks_noisy(points: NDArray, workers: int = -1) -> bool:
     pts = standardise(points)
     if len(pts) <= pts.shape[1] + 1:
         return False
-    tree = cKDTree(pts)
-    k = default_k(None, pts.shape[1], len(pts))
+    return _probe_is_rough(pts, cKDTree(pts), default_k(None, pts.shape[1], len(pts)), check_workers(workers))
+
+
+def _probe_is_rough(pts: NDArray, tree: cKDTree, k: int, workers: int) -> bool:
+    """The test for noise on the k nearest neighbours of _NOISY_PROBE points spread over ``pts``
+    (of every point of a smaller cloud)."""
     at = spread(pts, _NOISY_PROBE) if len(pts) > _NOISY_PROBE else slice(None)
-    probe = neighbours(tree, k, check_workers(workers), pts[at])
+    probe = neighbours(tree, k, workers, pts[at])
     return roughness(pts, probe, pca_normals(pts, probe)[1]) is not None
 
 
