@@ -36,7 +36,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import robust  # the protocol's reader and corruption, one copy
 
 DEFAULT_SHAPES = (str(robust.SHARED / "data" / "turk-dev"), "apple")
-CONDITIONS = ("noise-0.5", "noise-1")
+CONDITIONS = ("clean", "noise-0.5", "noise-1")
 
 
 def run_case(shape: str, path: str, condition: str, seed: int) -> dict:

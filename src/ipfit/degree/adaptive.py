@@ -60,6 +60,7 @@ from ..zeroset.quality import Quality, looks_like_contour, quality
 from ..zeroset.topology import Topology, describe_mismatch
 from .repair import fill_missing, other_solutions, repair
 from .rules import (
+    EXTEND_BELOW,
     RULES,
     TOLERANCE,
     TOPOLOGY,
@@ -281,11 +282,14 @@ def _check_progress(progress):
     return progress
 
 
-# The second pass of noisy 3D clouds (_reoriented): the points within this share of the box
+# The second pass of bare 3D clouds (_reoriented): the points within this share of the box
 # diagonal of the selected zero set take its gradient's sign, and the pass runs only if more
-# than _REORIENT_FEWEST of them turn.
+# than _REORIENT_FEWEST of them turn. A cloud that does not look noisy gets it only when its
+# best clean F-score is below _REORIENT_BELOW (the rule's "not yet good" in 3D, EXTEND_BELOW):
+# a fit that already follows the data seldom gains from it (docs/reorient.md), and costs twice.
 _REORIENT_REACH = 0.05
 _REORIENT_FEWEST = 0.01
+_REORIENT_BELOW = EXTEND_BELOW[3]
 # A 3D cloud is flat when its spread across its best plane is below this share of its widest
 # spread: far below any scan's noise (a sheet of paper: 3e-4), above the rounding of a 2D outline
 # or mesh saved with z = 0 and then turned (1e-8 through the covariance).
@@ -379,7 +383,7 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
         subsample of it and the selected one is polished and measured on every point, see
         :class:`~ipfit.SearchOptions` ``fit_points``); 'weights_variant' with a 'message' before
         the second fit of a weighted 3D cloud (see ``outliers``); 'reorient' with a 'message'
-        before the second fit of a noisy 3D cloud (see Notes).
+        before the second fit of a 3D cloud with estimated normals (see Notes).
 
     Returns
     -------
@@ -387,11 +391,12 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
 
     Notes
     -----
-    A noisy 3D cloud (``ipfit.normals.estimate.looks_noisy``) whose normals are estimated
-    is fitted twice: under noise the estimated signs come out wrong on whole regions, and the
-    second fit takes, at each point within 5 % of the box diagonal of the first fit's zero set,
-    the sign of that fit's gradient; it is kept when it measures better (as the weights'
-    variant above), the ``message`` saying which.
+    A 3D cloud whose normals are estimated is fitted twice when it looks noisy
+    (``ipfit.normals.estimate.looks_noisy``) or its first fit's best clean F-score is below
+    0.95: under noise, and on sparse clouds with thin parts, the estimated signs come out wrong
+    on whole regions, and the second fit takes, at each point within 5 % of the box diagonal of
+    the first fit's zero set, the sign of that fit's gradient; it is kept when it measures
+    better (as the weights' variant above), the ``message`` saying which.
 
     The paper's exact pipeline is ``fit_adaptive(points, normals, method=PAPER_METHOD,
     options=PAPER, rule=PAPER_RULE, outliers="none")`` (what ``ipfit fit --paper`` runs). Ctrl-C
@@ -470,10 +475,12 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
     settings = _LoopSettings(method, options, rule, epsilon, delta, min_degree, top, progress, noise,
                              ordered_contour)
     start = time.perf_counter()
-    # Noisy 3D clouds whose normals were estimated: their signs are fitted again (see _reoriented)
-    # when the rule measures the fits that the second pass must beat.
-    reorient = rule.measured and known is None and dim == 3 and looks_noisy(pts)
+    # 3D clouds whose normals were estimated: their signs are fitted again (see _reoriented) when
+    # the rule measures the fits that the second pass must beat, and the cloud looks noisy or its
+    # first fit measures poorly.
+    reorient = rule.measured and known is None and dim == 3
     second_pass = copy.deepcopy(generator) if reorient else None
+    noisy = reorient and looks_noisy(pts)
     if scored_weights is None or dim != 3:
         loop = _degree_loop(cloud, unit, settings, generator)
         total = [loop]
@@ -505,7 +512,8 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
                 loop = dataclasses.replace(supported, message=f"{supported.message}; weights: the outlier score's "
                                                               "times the normals' support (the fit with the "
                                                               "score's alone measured no better)")
-    if second_pass is not None and loop.reason != "interrupted":
+    if second_pass is not None and loop.reason != "interrupted" and (
+            noisy or rule.best_clean_f(loop.results) < _REORIENT_BELOW):
         loop = _reoriented(loop, cloud, unit, settings, second_pass, total)
     chosen = loop.results[loop.index]
     name = method if isinstance(method, str) else getattr(method, "__name__", "custom")
