@@ -1,9 +1,11 @@
-"""Noisy 3D clouds: the estimated normals' signs taken again from the first fit (issue 30).
+"""Bare 3D clouds: the estimated normals' signs taken again from the first fit (issue 30).
 
 Under noise wider than the k nearest neighbours, sign propagation runs across the noise band and
-whole regions come out inside out; :func:`ipfit.fit_adaptive` then fits a second time with each
-sign turned to the first fit's gradient. The references: an exact sphere polynomial with a cap of
-normals planted inside out, and the bundled bunny's coarsest scan with Gaussian noise.
+whole regions come out inside out, and so it does on sparse clean clouds with thin parts;
+:func:`ipfit.fit_adaptive` then fits a second time with each sign turned to the first fit's
+gradient (a clean cloud only when its first fit measures poorly). The references: an exact sphere
+polynomial with a cap of normals planted inside out, and the bundled bunny's coarsest scan, clean
+and with Gaussian noise.
 """
 
 from __future__ import annotations
@@ -15,7 +17,9 @@ import pytest
 
 import ipfit
 from ipfit.datasets import synthetic
+from ipfit.degree import adaptive
 from ipfit.degree.adaptive import _against_gradient
+from ipfit.degree.rules import get_rule
 from ipfit.normals.estimate import looks_noisy
 
 BUNNY = Path(__file__).parent / "data" / "bun_zipper_res4.ply"
@@ -96,3 +100,37 @@ def test_the_second_pass_needs_estimated_normals_and_a_measuring_rule(seed):
     paper = ipfit.fit_adaptive(bunny, method="3l", rule="paper", max_degree=2, progress=events.append)
     assert _against_gradient(paper.polynomial, bunny, ipfit.estimate_normals(bunny)).mean() > 0.01
     assert not any(e["event"] == "reorient" for e in events)
+
+
+def test_a_clean_cloud_is_fitted_again_only_when_its_first_fit_measures_poorly(seed, monkeypatch):
+    # any turned normal is enough here, so that only the first fit's measured quality decides
+    monkeypatch.setattr(adaptive, "_REORIENT_FEWEST", -1.0)
+    rng = np.random.default_rng(seed)
+    bunny = ipfit.load(BUNNY)
+    points = bunny.points[rng.permutation(len(bunny.points))]
+    assert not looks_noisy(points)
+    for top in (None, 4):  # degree 4 cannot follow the ears: below the bar
+        events: list[dict] = []
+        shipped = adaptive._POOR_BELOW
+        monkeypatch.setattr(adaptive, "_POOR_BELOW", 0.0)  # the first fit alone
+        once = ipfit.fit_adaptive(points, rng=seed, max_degree=top)
+        monkeypatch.setattr(adaptive, "_POOR_BELOW", shipped)
+        twice = ipfit.fit_adaptive(points, rng=seed, max_degree=top, progress=events.append)
+        assert "fitted again" not in once.message
+        first = get_rule(once.rule).best_clean_f(once.degrees)
+        if top == 4:
+            assert first < shipped
+        if first >= shipped:
+            assert not any(e["event"] == "reorient" for e in events) and "fitted again" not in twice.message
+            assert np.allclose(twice.polynomial.coefficients, once.polynomial.coefficients)
+            continue
+        assert sum(e["event"] == "reorient" for e in events) == 1
+        assert "normals turned to the degree-" in twice.message and "fitted again" in twice.message
+        assert twice.nfev > sum(d.nfev for d in twice.degrees)  # both passes' evaluations counted
+        # the second fit is kept only when it measures better on the points
+        f_once, f_twice = (ipfit.quality(r.polynomial, points).f_score for r in (once, twice))
+        if "(measured better)" in twice.message:
+            assert f_twice > f_once
+        else:
+            assert "(measured no better: kept)" in twice.message
+            assert np.allclose(twice.polynomial.coefficients, once.polynomial.coefficients)

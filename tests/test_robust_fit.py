@@ -275,3 +275,47 @@ def test_a_big_bare_scan_with_strays_is_scored_and_fitted_on_samples_of_it(seed)
     assert "degrees fitted on 50,000 of the" in result.message
     assert result.at_degree(4).quality.f_score > 0.99
     assert np.max(np.abs(result.polynomial.residuals(cloud[~planted]))) < 0.02
+
+
+def test_planted_strays_do_not_pull_the_unweighted_look(seed, monkeypatch):
+    # A 3D fit that measures poorly is fitted again on every point, unweighted (a sparse clean
+    # cloud's thin parts can score as strays), and that fit is kept only when it measures better
+    # on the points the score trusts. Forced here on a sphere with 30 % planted strays: whichever
+    # is kept, the zero set is the sphere's, and the result says which.
+    from ipfit.degree import adaptive
+
+    monkeypatch.setattr(adaptive, "_POOR_BELOW", 1.01)
+    rng = np.random.default_rng(seed)
+    cloud, _ = with_outliers(synthetic.sphere(800, radius=1.0, rng=rng).points, 0.3, rng)
+    events = []
+    result = ipfit.fit_adaptive(cloud, max_degree=4, rng=seed, progress=events.append)
+    looks = [e["message"] for e in events if e["event"] == "weights_variant"]
+    assert any("on every point, unweighted" in m for m in looks)
+    kept = "scored as outliers kept" in result.message
+    assert result.outliers is not None and (result.outliers.count == 0) == kept
+    truth = synthetic.sphere(6000, radius=1.0, rng=np.random.default_rng(99)).points
+    assert _zero_set_error(result.polynomial, _sphere_distance, truth, size=2.0) < 0.01
+
+
+@pytest.mark.parametrize("offset", [0, 5])
+def test_the_unweighted_look_records_what_it_kept(seed, offset, monkeypatch):
+    # A sparse thin torus (400 points, tube radius 0.1) whose clean points 'auto' scores as strays
+    # on some seeds (0 and 5: 39 and 34 points); the unweighted look forced. Whichever fit is
+    # kept, the result says so: kept, no point left out; not kept, the score's outliers stand.
+    from ipfit.degree import adaptive
+
+    seed += offset
+    shape = synthetic.torus(400, 1.0, 0.1, rng=np.random.default_rng(seed))
+    flagged = ipfit.score_outliers(shape.points).count
+    monkeypatch.setattr(adaptive, "_POOR_BELOW", 1.01)
+    events = []
+    result = ipfit.fit_adaptive(shape.points, max_degree=4, rng=seed, progress=events.append)
+    ran = any("on every point, unweighted" in e.get("message", "") for e in events)
+    assert ran == (flagged > 0)
+    if "scored as outliers kept" in result.message:
+        assert f"{flagged:,} points" in result.message and result.outliers.count == 0
+        assert np.all(result.outliers.weights == 1.0)
+    else:
+        assert result.outliers.count == flagged
+    # either way the fit is the torus: its zero set on the points
+    assert ipfit.quality(result.polynomial, shape.points).f_score > 0.95

@@ -284,12 +284,15 @@ def _check_progress(progress):
 
 # The second pass of bare 3D clouds (_reoriented): the points within this share of the box
 # diagonal of the selected zero set take its gradient's sign, and the pass runs only if more
-# than _REORIENT_FEWEST of them turn. A cloud that does not look noisy gets it only when its
-# best clean F-score is below _REORIENT_BELOW (the rule's "not yet good" in 3D, EXTEND_BELOW):
-# a fit that already follows the data seldom gains from it (docs/reorient.md), and costs twice.
+# than _REORIENT_FEWEST of them turn.
 _REORIENT_REACH = 0.05
 _REORIENT_FEWEST = 0.01
-_REORIENT_BELOW = EXTEND_BELOW[3]
+# A 3D fit whose best clean F-score is below this (the rule's "not yet good" in 3D) gets a second
+# look: without the outlier score's weights when 'auto' acted (_unweighted), and with the fit's
+# signs when its normals were estimated (_reoriented; a noisy cloud always gets that one). A fit
+# that already follows the data seldom gains from either (docs/reorient-clean.md), and each costs
+# another degree loop.
+_POOR_BELOW = EXTEND_BELOW[3]
 # A 3D cloud is flat when its spread across its best plane is below this share of its widest
 # spread: far below any scan's noise (a sheet of paper: 3e-4), above the rounding of a 2D outline
 # or mesh saved with z = 0 and then turned (1e-8 through the covariance).
@@ -444,6 +447,10 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
     # A weighted fit (robust, see refine) when outliers were found, or the given cloud has weights.
     weights = None if given is None else given.weights
     noise = None if scored is None else scored.noise_scale
+    # 'auto' that acted on a 3D cloud gets a look without the score when its fit measures poorly
+    # (_unweighted): sparse thin parts of a clean cloud can read as strays (docs/robust.md).
+    every = (pts, known) if (dim == 3 and rule.measured and weights is None and scored is not None
+                             and scored.mode == "auto" and not np.all(scored.weights == 1.0)) else None
     if scored is not None and not scored.inliers.all():
         keep = scored.inliers
         pts, known, faces = pts[keep], None if known is None else known[keep], _kept_faces(faces, keep)
@@ -480,6 +487,7 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
     # first fit measures poorly.
     reorient = rule.measured and known is None and dim == 3
     second_pass = copy.deepcopy(generator) if reorient else None
+    unweighted_pass = copy.deepcopy(generator) if every is not None else None
     noisy = reorient and looks_noisy(pts)
     if scored_weights is None or dim != 3:
         loop = _degree_loop(cloud, unit, settings, generator)
@@ -512,8 +520,14 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
                 loop = dataclasses.replace(supported, message=f"{supported.message}; weights: the outlier score's "
                                                               "times the normals' support (the fit with the "
                                                               "score's alone measured no better)")
+    if every is not None and loop.reason != "interrupted" and rule.best_clean_f(loop.results) < _POOR_BELOW:
+        unweighted = _unweighted(loop, every, cast(OutlierScore, scored), settings, unweighted_pass, total)
+        if unweighted is not None:
+            loop, cloud, unit = unweighted
+            scored = dataclasses.replace(cast(OutlierScore, scored), weights=np.ones(len(cloud)),
+                                         inliers=np.ones(len(cloud), bool))
     if second_pass is not None and loop.reason != "interrupted" and (
-            noisy or rule.best_clean_f(loop.results) < _REORIENT_BELOW):
+            noisy or rule.best_clean_f(loop.results) < _POOR_BELOW):
         loop = _reoriented(loop, cloud, unit, settings, second_pass, total)
     chosen = loop.results[loop.index]
     name = method if isinstance(method, str) else getattr(method, "__name__", "custom")
@@ -605,6 +619,34 @@ def _reoriented(loop: _Loop, cloud: Cloud, unit, settings: _LoopSettings, genera
     if _measures_better(again, loop, trusted, settings.rule):
         return dataclasses.replace(again, message=f"{again.message}; {share} and fitted again (measured better)")
     return dataclasses.replace(loop, message=f"{loop.message}; {share} and fitted again (measured no better: kept)")
+
+
+def _unweighted(loop: _Loop, every: tuple[NDArray, NDArray | None], scored: OutlierScore, settings: _LoopSettings,
+                generator, total: list[_Loop]) -> tuple[_Loop, Cloud, NDArray] | None:
+    """``(loop, cloud, normals)`` of the degree loop on every point, unweighted, when it measures
+    better than ``loop`` (the fit 'auto' weighted) on the points the score trusts; else None.
+
+    Planted strays leave a fit through them far from the points the score trusts, so this loop
+    loses wherever the score was right; where a sparse clean cloud's thin parts scored as strays
+    (the Turk scissors: 6 % of 322 points, F 0.05 weighted, 0.80 not), it wins.
+    """
+    points, known = every
+    if settings.progress is not None:
+        settings.progress({"event": "weights_variant", "message": f"fitting again on every point, unweighted "
+                                                                  f"(the {scored.count:,} points scored as outliers "
+                                                                  "kept)"})
+    unit = estimate_normals(points, progress=settings.progress) if known is None else known
+    cloud = Cloud._checked(points, as_normals(unit, points), None, None)
+    try:
+        again = _degree_loop(cloud, unit, settings, generator)
+    except KeyboardInterrupt:  # before its first degree finished: the weighted fit stands
+        return None
+    total.append(again)
+    if not _measures_better(again, loop, Cloud._checked(points[scored.inliers], None), settings.rule):
+        return None
+    share = f"{scored.count:,} points ({scored.outlier_share:.0%}) scored as outliers"
+    return dataclasses.replace(again, message=f"{again.message}; {share} kept: the fit on every point, unweighted, "
+                                              "measured better on the rest"), cloud, unit
 
 
 def _degree_loop(cloud: Cloud, unit, settings: _LoopSettings, generator) -> _Loop:
