@@ -521,9 +521,9 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
                                                               "times the normals' support (the fit with the "
                                                               "score's alone measured no better)")
     if every is not None and loop.reason != "interrupted" and rule.best_clean_f(loop.results) < _POOR_BELOW:
-        unweighted = _unweighted(loop, every, cast(OutlierScore, scored), settings, unweighted_pass, total)
+        loop, unweighted = _unweighted(loop, every, cast(OutlierScore, scored), settings, unweighted_pass, total)
         if unweighted is not None:
-            loop, cloud, unit = unweighted
+            cloud, unit = unweighted
             scored = dataclasses.replace(cast(OutlierScore, scored), weights=np.ones(len(cloud)),
                                          inliers=np.ones(len(cloud), bool))
     if second_pass is not None and loop.reason != "interrupted" and (
@@ -622,9 +622,10 @@ def _reoriented(loop: _Loop, cloud: Cloud, unit, settings: _LoopSettings, genera
 
 
 def _unweighted(loop: _Loop, every: tuple[NDArray, NDArray | None], scored: OutlierScore, settings: _LoopSettings,
-                generator, total: list[_Loop]) -> tuple[_Loop, Cloud, NDArray] | None:
-    """``(loop, cloud, normals)`` of the degree loop on every point, unweighted, when it measures
-    better than ``loop`` (the fit 'auto' weighted) on the points the score trusts; else None.
+                generator, total: list[_Loop]) -> tuple[_Loop, tuple[Cloud, NDArray] | None]:
+    """``(loop, (cloud, normals))`` of the degree loop on every point, unweighted, when it measures
+    better than ``loop`` (the fit 'auto' weighted) on the points the score trusts; else ``(loop,
+    None)``, its message saying that the look was taken (unless interrupted).
 
     Planted strays leave a fit through them far from the points the score trusts, so this loop
     loses wherever the score was right; where a sparse clean cloud's thin parts scored as strays
@@ -640,13 +641,14 @@ def _unweighted(loop: _Loop, every: tuple[NDArray, NDArray | None], scored: Outl
     try:
         again = _degree_loop(cloud, unit, settings, generator)
     except KeyboardInterrupt:  # before its first degree finished: the weighted fit stands
-        return None
+        return loop, None
     total.append(again)
-    if not _measures_better(again, loop, Cloud._checked(points[scored.inliers], None), settings.rule):
-        return None
     share = f"{scored.count:,} points ({scored.outlier_share:.0%}) scored as outliers"
+    if not _measures_better(again, loop, Cloud._checked(points[scored.inliers], None), settings.rule):
+        return dataclasses.replace(loop, message=f"{loop.message}; {share} left out (the fit on every point, "
+                                                 "unweighted, measured no better on the rest)"), None
     return dataclasses.replace(again, message=f"{again.message}; {share} kept: the fit on every point, unweighted, "
-                                              "measured better on the rest"), cloud, unit
+                                              "measured better on the rest"), (cloud, unit)
 
 
 def _degree_loop(cloud: Cloud, unit, settings: _LoopSettings, generator) -> _Loop:
