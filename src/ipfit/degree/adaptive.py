@@ -374,7 +374,11 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
         removes clean points (rows of a mesh's vertices, creases), the degrees are fitted once
         more with the score's weights alone, and that fit is kept when its selected degree has
         the higher F-score on the points of weight >= 0.5 after the factor and is clean there
-        (or the first is not either), its ``message`` saying which. A mesh's vertices are its
+        (or the first is not either), its ``message`` saying which. When 'auto' left points out
+        of a 3D cloud and the fit's best clean F-score is below 0.95, every point is fitted once
+        more, unweighted (sparse thin parts of a clean cloud can score as strays), and that fit is
+        kept when it measures better on the points the score trusts; the result then treats no
+        point as an outlier, and the ``message`` says which fit was kept. A mesh's vertices are its
         surface: 'auto' treats none as outliers there, and a share keeps the faces whose
         vertices are all inliers. The result records the decision (:attr:`AdaptiveResult.outliers`).
     rng : seed or Generator (SPEC 7), passed to the metaheuristics.
@@ -385,7 +389,7 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
         the 'degree', 'n_points' and 'fit_points' when a big cloud's degrees were fitted on an even
         subsample of it and the selected one is polished and measured on every point, see
         :class:`~ipfit.SearchOptions` ``fit_points``); 'weights_variant' with a 'message' before
-        the second fit of a weighted 3D cloud (see ``outliers``); 'reorient' with a 'message'
+        each further fit of a weighted 3D cloud (see ``outliers``); 'reorient' with a 'message'
         before the second fit of a 3D cloud with estimated normals (see Notes).
 
     Returns
@@ -635,7 +639,7 @@ def _unweighted(loop: _Loop, every: tuple[NDArray, NDArray | None], scored: Outl
     if settings.progress is not None:
         settings.progress({"event": "weights_variant", "message": f"fitting again on every point, unweighted "
                                                                   f"(the {scored.count:,} points scored as outliers "
-                                                                  "kept)"})
+                                                                  "included)"})
     unit = estimate_normals(points, progress=settings.progress) if known is None else known
     cloud = Cloud._checked(points, as_normals(unit, points), None, None)
     try:
