@@ -72,7 +72,10 @@ def test_a_surface_with_strays_is_fitted_with_both_weightings_and_says_which_it_
     events = []
     result = ipfit.fit_adaptive(cloud, max_degree=4, rng=seed, progress=events.append)
     kinds = [e["event"] for e in events if e["event"] in ("degree_start", "weights_variant")]
-    assert kinds == ["degree_start", "degree_start", "weights_variant", "degree_start", "degree_start"]
+    # each loop tries the degrees its rule asks for (seed 3: the first stops at degree 2, captured)
+    first = kinds.index("weights_variant")
+    assert kinds.count("weights_variant") == 1 and first >= 1
+    assert set(kinds[:first]) == set(kinds[first + 1:]) == {"degree_start"}
     assert "weights: the outlier score's" in result.message
     assert result.nfev > sum(d.nfev for d in result.degrees)
     truth = synthetic.sphere(6000, radius=1.0, rng=np.random.default_rng(99)).points
@@ -293,6 +296,8 @@ def test_planted_strays_do_not_pull_the_unweighted_look(seed, monkeypatch):
     assert any("on every point, unweighted" in m for m in looks)
     kept = "scored as outliers kept" in result.message
     assert result.outliers is not None and (result.outliers.count == 0) == kept
+    # every decision around the degree loops is said, whichever loop's fit was kept at the end
+    assert "weights: the outlier score's" in result.message and "unweighted, measured" in result.message
     truth = synthetic.sphere(6000, radius=1.0, rng=np.random.default_rng(99)).points
     assert _zero_set_error(result.polynomial, _sphere_distance, truth, size=2.0) < 0.01
 

@@ -518,12 +518,12 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
             trusted = Cloud._checked(pts[cast(NDArray[np.float64], weights) >= 0.5], None)
             if _measures_better(plain, supported, trusted, rule):
                 cloud = Cloud._checked(pts, cloud.oriented, faces, scored_weights)
-                loop = dataclasses.replace(plain, message=f"{plain.message}; weights: the outlier score's alone (the "
-                                                          "fit with the normals' support on them measured lower)")
+                note = "weights: the outlier score's alone (the fit with the normals' support on them measured lower)"
+                loop = dataclasses.replace(plain, notes=(note,))
             else:
-                loop = dataclasses.replace(supported, message=f"{supported.message}; weights: the outlier score's "
-                                                              "times the normals' support (the fit with the "
-                                                              "score's alone measured no better)")
+                note = ("weights: the outlier score's times the normals' support (the fit with the score's alone "
+                        "measured no better)")
+                loop = dataclasses.replace(supported, notes=(note,))
     if every is not None and loop.reason != "interrupted" and rule.best_clean_f(loop.results) < _POOR_BELOW:
         loop, unweighted = _unweighted(loop, every, cast(OutlierScore, scored), settings, unweighted_pass, total)
         if unweighted is not None:
@@ -539,7 +539,7 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
     return AdaptiveResult(
         x=chosen.x, fun=chosen.fun, nit=sum(r.nit for done in total for r in done.results),
         nfev=sum(r.nfev for done in total for r in done.results), success=success,
-        message=loop.message, polynomial=chosen.polynomial,
+        message="; ".join((loop.message, *loop.notes)), polynomial=chosen.polynomial,
         selected_degree=chosen.degree, degrees=tuple(loop.results), reason=loop.reason, epsilon=epsilon, delta=delta,
         method=name, rule=rule.name, seconds=time.perf_counter() - start,
         options=options if method in REFINE_METHODS else None, outliers=scored)
@@ -569,6 +569,7 @@ class _Loop:
     index: int
     reason: str
     message: str
+    notes: tuple[str, ...] = ()  # what fit_adaptive decided around the loop, said after its message
 
 
 def _measures_better(one: _Loop, other: _Loop, points: Cloud, rule: DegreeRule) -> bool:
@@ -621,8 +622,8 @@ def _reoriented(loop: _Loop, cloud: Cloud, unit, settings: _LoopSettings, genera
     trusted = Cloud._checked(cloud.points if cloud.weights is None else cloud.points[cloud.weights >= 0.5], None)
     share = f"{flip.mean():.0%} of the normals turned to the degree-{poly.degree} fit's gradient"
     if _measures_better(again, loop, trusted, settings.rule):
-        return dataclasses.replace(again, message=f"{again.message}; {share} and fitted again (measured better)")
-    return dataclasses.replace(loop, message=f"{loop.message}; {share} and fitted again (measured no better: kept)")
+        return dataclasses.replace(again, notes=(*loop.notes, f"{share} and fitted again (measured better)"))
+    return dataclasses.replace(loop, notes=(*loop.notes, f"{share} and fitted again (measured no better: kept)"))
 
 
 def _unweighted(loop: _Loop, every: tuple[NDArray, NDArray | None], scored: OutlierScore, settings: _LoopSettings,
@@ -649,10 +650,10 @@ def _unweighted(loop: _Loop, every: tuple[NDArray, NDArray | None], scored: Outl
     total.append(again)
     share = f"{scored.count:,} points ({scored.outlier_share:.0%}) scored as outliers"
     if not _measures_better(again, loop, Cloud._checked(points[scored.inliers], None), settings.rule):
-        return dataclasses.replace(loop, message=f"{loop.message}; {share} left out (the fit on every point, "
-                                                 "unweighted, measured no better on the rest)"), None
-    return dataclasses.replace(again, message=f"{again.message}; {share} kept: the fit on every point, unweighted, "
-                                              "measured better on the rest"), (cloud, unit)
+        note = f"{share} left out (the fit on every point, unweighted, measured no better on the rest)"
+        return dataclasses.replace(loop, notes=(*loop.notes, note)), None
+    note = f"{share} kept: the fit on every point, unweighted, measured better on the rest"
+    return dataclasses.replace(again, notes=(*loop.notes, note)), (cloud, unit)
 
 
 def _degree_loop(cloud: Cloud, unit, settings: _LoopSettings, generator) -> _Loop:
