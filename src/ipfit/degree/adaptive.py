@@ -377,8 +377,8 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
         (or the first is not either), its ``message`` saying which. When 'auto' left points out
         of a 3D cloud and the fit's best clean F-score is below 0.95, every point is fitted once
         more, unweighted (sparse thin parts of a clean cloud can score as strays), and that fit is
-        kept when it measures better on the points the score trusts; the result then treats no
-        point as an outlier, and the ``message`` says which fit was kept. A mesh's vertices are its
+        kept when it measures better on the same points of weight >= 0.5; the result then treats
+        no point as an outlier, and the ``message`` says which fit was kept. A mesh's vertices are its
         surface: 'auto' treats none as outliers there, and a share keeps the faces whose
         vertices are all inliers. The result records the decision (:attr:`AdaptiveResult.outliers`).
     rng : seed or Generator (SPEC 7), passed to the metaheuristics.
@@ -525,7 +525,11 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
                         "measured no better)")
                 loop = dataclasses.replace(supported, notes=(note,))
     if every is not None and loop.reason != "interrupted" and rule.best_clean_f(loop.results) < _POOR_BELOW:
-        loop, unweighted = _unweighted(loop, every, cast(OutlierScore, scored), settings, unweighted_pass, total)
+        # measured, as the weightings are, on the points the score and the normals' support both
+        # trust: a fit through every point gains on strays the score missed
+        trusted = Cloud._checked(pts[cast(NDArray[np.float64], weights) >= 0.5], None)
+        loop, unweighted = _unweighted(loop, every, cast(OutlierScore, scored), trusted, settings, unweighted_pass,
+                                       total)
         if unweighted is not None:
             cloud, unit = unweighted
             scored = dataclasses.replace(cast(OutlierScore, scored), weights=np.ones(len(cloud)),
@@ -626,15 +630,18 @@ def _reoriented(loop: _Loop, cloud: Cloud, unit, settings: _LoopSettings, genera
     return dataclasses.replace(loop, notes=(*loop.notes, f"{share} and fitted again (measured no better: kept)"))
 
 
-def _unweighted(loop: _Loop, every: tuple[NDArray, NDArray | None], scored: OutlierScore, settings: _LoopSettings,
-                generator, total: list[_Loop]) -> tuple[_Loop, tuple[Cloud, NDArray] | None]:
+def _unweighted(loop: _Loop, every: tuple[NDArray, NDArray | None], scored: OutlierScore, trusted: Cloud,
+                settings: _LoopSettings, generator,
+                total: list[_Loop]) -> tuple[_Loop, tuple[Cloud, NDArray] | None]:
     """``(loop, (cloud, normals))`` of the degree loop on every point, unweighted, when it measures
-    better than ``loop`` (the fit 'auto' weighted) on the points the score trusts; else ``(loop,
-    None)``, its message saying that the look was taken (unless interrupted).
+    better than ``loop`` (the fit 'auto' weighted) on ``trusted``, the points the score and the
+    normals' support both trust; else ``(loop, None)``, its notes saying that the look was taken
+    (unless interrupted).
 
-    Planted strays leave a fit through them far from the points the score trusts, so this loop
-    loses wherever the score was right; where a sparse clean cloud's thin parts scored as strays
-    (the Turk scissors: 6 % of 322 points, F 0.05 weighted, 0.80 not), it wins.
+    A fit through planted strays grows sheets away from the trusted points, so this loop loses
+    wherever the score was right (measured on the score's inliers alone, it won on strays the
+    score missed: the Turk turbine at 40 %); where a sparse clean cloud's thin parts scored as
+    strays, it wins (the Turk spider, docs/reorient-clean.md).
     """
     points, known = every
     if settings.progress is not None:
@@ -649,7 +656,7 @@ def _unweighted(loop: _Loop, every: tuple[NDArray, NDArray | None], scored: Outl
         return loop, None
     total.append(again)
     share = f"{scored.count:,} points ({scored.outlier_share:.0%}) scored as outliers"
-    if not _measures_better(again, loop, Cloud._checked(points[scored.inliers], None), settings.rule):
+    if not _measures_better(again, loop, trusted, settings.rule):
         note = f"{share} left out (the fit on every point, unweighted, measured no better on the rest)"
         return dataclasses.replace(loop, notes=(*loop.notes, note)), None
     note = f"{share} kept: the fit on every point, unweighted, measured better on the rest"
