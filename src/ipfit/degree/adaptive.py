@@ -451,10 +451,11 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
     # A weighted fit (robust, see refine) when outliers were found, or the given cloud has weights.
     weights = None if given is None else given.weights
     noise = None if scored is None else scored.noise_scale
-    # 'auto' that acted on a 3D cloud gets a look without the score when its fit measures poorly
-    # (_unweighted): sparse thin parts of a clean cloud can read as strays (docs/robust.md).
+    # 'auto' that left points out of a 3D cloud gets a look without the score when its fit
+    # measures poorly (_unweighted): sparse thin parts of a clean cloud can read as strays
+    # (docs/reorient-clean.md).
     every = (pts, known) if (dim == 3 and rule.measured and weights is None and scored is not None
-                             and scored.mode == "auto" and not np.all(scored.weights == 1.0)) else None
+                             and scored.mode == "auto" and not scored.inliers.all()) else None
     if scored is not None and not scored.inliers.all():
         keep = scored.inliers
         pts, known, faces = pts[keep], None if known is None else known[keep], _kept_faces(faces, keep)
