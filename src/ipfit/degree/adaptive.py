@@ -493,7 +493,6 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
     reorient = rule.measured and known is None and dim == 3
     second_pass = copy.deepcopy(generator) if reorient else None
     unweighted_pass = copy.deepcopy(generator) if every is not None else None
-    noisy = reorient and looks_noisy(pts)
     if scored_weights is None or dim != 3:
         loop = _degree_loop(cloud, unit, settings, generator)
         total = [loop]
@@ -508,12 +507,8 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
         total = [supported]
         if progress is not None:
             progress({"event": "weights_variant", "message": "fitting again, weighted by the outlier score alone"})
-        try:
-            plain = _degree_loop(Cloud._checked(pts, cloud.oriented, faces, scored_weights), unit, settings, twin)
-        except KeyboardInterrupt:  # before its first degree finished: the first fit stands
-            plain = None
+        plain = _another_loop(Cloud._checked(pts, cloud.oriented, faces, scored_weights), unit, settings, twin, total)
         if plain is not None:
-            total.append(plain)
             # measured on the points both fits trust (the supported weights' inliers), not on
             # every point kept: a sheet grown through strays the score missed would gain there
             trusted = Cloud._checked(pts[cast(NDArray[np.float64], weights) >= 0.5], None)
@@ -536,7 +531,7 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
             scored = dataclasses.replace(cast(OutlierScore, scored), weights=np.ones(len(cloud)),
                                          inliers=np.ones(len(cloud), bool))
     if second_pass is not None and loop.reason != "interrupted" and (
-            noisy or rule.best_clean_f(loop.results) < _POOR_BELOW):
+            rule.best_clean_f(loop.results) < _POOR_BELOW or looks_noisy(pts)):
         loop = _reoriented(loop, cloud, unit, settings, second_pass, total)
     chosen = loop.results[loop.index]
     name = method if isinstance(method, str) else getattr(method, "__name__", "custom")
@@ -619,11 +614,9 @@ def _reoriented(loop: _Loop, cloud: Cloud, unit, settings: _LoopSettings, genera
     if settings.progress is not None:
         settings.progress({"event": "reorient", "message": f"{int(flip.sum()):,} normals turned to the fit's "
                                                              "gradient, fitting again"})
-    try:
-        again = _degree_loop(turned, unit * signs, settings, generator)
-    except KeyboardInterrupt:  # before its first degree finished: the first fit stands
+    again = _another_loop(turned, unit * signs, settings, generator, total)
+    if again is None:
         return loop
-    total.append(again)
     trusted = Cloud._checked(cloud.points if cloud.weights is None else cloud.points[cloud.weights >= 0.5], None)
     share = f"{flip.mean():.0%} of the normals turned to the degree-{poly.degree} fit's gradient"
     if _measures_better(again, loop, trusted, settings.rule):
@@ -651,17 +644,26 @@ def _unweighted(loop: _Loop, every: tuple[NDArray, NDArray | None], scored: Outl
                                                                   "included)"})
     unit = estimate_normals(points, progress=settings.progress) if known is None else known
     cloud = Cloud._checked(points, as_normals(unit, points), None, None)
-    try:
-        again = _degree_loop(cloud, unit, settings, generator)
-    except KeyboardInterrupt:  # before its first degree finished: the weighted fit stands
+    again = _another_loop(cloud, unit, settings, generator, total)
+    if again is None:
         return loop, None
-    total.append(again)
     share = f"{scored.count:,} points ({scored.outlier_share:.0%}) scored as outliers"
     if not _measures_better(again, loop, trusted, settings.rule):
         note = f"{share} left out (the fit on every point, unweighted, measured no better on the rest)"
         return dataclasses.replace(loop, notes=(*loop.notes, note)), None
     note = f"{share} kept: the fit on every point, unweighted, measured better on the rest"
     return dataclasses.replace(again, notes=(*loop.notes, note)), (cloud, unit)
+
+
+def _another_loop(cloud: Cloud, unit, settings: _LoopSettings, generator, total: list[_Loop]) -> _Loop | None:
+    """The degree loop run once more, on ``cloud``, appended to ``total``; None when interrupted
+    before its first degree finished (the fit so far stands)."""
+    try:
+        again = _degree_loop(cloud, unit, settings, generator)
+    except KeyboardInterrupt:
+        return None
+    total.append(again)
+    return again
 
 
 def _degree_loop(cloud: Cloud, unit, settings: _LoopSettings, generator) -> _Loop:
