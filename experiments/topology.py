@@ -14,7 +14,9 @@ with seed 0:
   held: ``CaptureRule`` with ``prefers_topology = False``);
 * **default**: the capture rule as ``ipfit fit`` runs it now: when its choice has another
   topology than the data's, the lowest degree of the data's topology within the rule's
-  tolerance of the best clean F-score, as fitted or repaired to it, at no cost in F-score;
+  tolerance of the best clean F-score, as fitted or repaired to it, at no cost in F-score; when
+  there is none and the rule stopped below its last degree, one degree more, repaired for it
+  (set aside when it has another topology too);
 * **strict**: the ``"topology"`` rule (``ipfit fit --rule topology``): the topology held at any cost.
 
 The runs are the same fit until a degree (or a repair round) has another topology than the
@@ -243,9 +245,11 @@ def markdown(rows: list[dict], every: int, command: str, source: str | None = No
            "Each shape is fitted with the recommended pipeline three ways: **before** (the capture rule as it "
            "was: the topology reported, not held), **default** (`ipfit fit` now: when the capture rule's choice "
            "has another topology than the data's, the lowest degree of the data's topology within the rule's "
-           "tolerance, 0.01, of the best clean F-score, as fitted or repaired to it, is selected instead; "
-           "otherwise the choice stays) and **strict** (`ipfit fit --rule topology`: a degree of another "
-           "topology is not clean, at any cost in F-score). The repair holds the places of a wrong topology: "
+           "tolerance, 0.01, of the best clean F-score, as fitted or repaired to it, is selected instead; when "
+           "there is none and the rule stopped below its last degree, one degree more is fitted and repaired for "
+           "it, and set aside when it has another topology too; otherwise the choice stays) and **strict** "
+           "(`ipfit fit --rule topology`: a degree of another topology is not clean, at any cost in F-score). "
+           "The repair holds the places of a wrong topology: "
            "the neck of a part cut off inside, a loop or bridge in a gap outside. *Correct*: the "
            "selected zero set has the data's topology (2D: loops and their nesting; 3D: components and the "
            "genus of each), specks left out (`ipfit.degree.rules.is_speck`), where the data tells it with "

@@ -431,3 +431,120 @@ def test_topology_samples_find_the_neck_and_the_envelope():
     assert len(places)
     assert np.all(np.minimum(np.linalg.norm(places - [-1.5, 0, 0], axis=1),
                              np.linalg.norm(places - [1.5, 0, 0], axis=1)) > 1.0)
+
+
+def _c_shaped_torus(gap: float = 0.25, major: float = 1.0, minor: float = 0.3, step: float = 0.04):
+    """A closed mesh of a solid torus cut through at x < 0, |y| < ``gap`` (a 'C': genus 0), from
+    marching cubes on the larger of the torus' and the cut's signed distances."""
+    from skimage.measure import marching_cubes
+
+    axis = np.arange(-1.6, 1.6 + step / 2, step)
+    x, y, z = np.meshgrid(axis, axis, axis, indexing="ij")
+    tube = np.hypot(np.hypot(x, y) - major, z) - minor
+    cut = np.where(x < 0, gap - np.abs(y), -np.inf)
+    verts, faces, _, _ = marching_cubes(np.maximum(tube, cut), 0.0, spacing=(step,) * 3)
+    return verts + axis[0], faces
+
+
+def test_topology_samples_find_a_handle_the_data_has_not():
+    """A whole torus fitted to a C (the torus cut through): the zero set joins the C's ends into
+    a handle, which changes no count of pieces, only the genus; the places are in the cut."""
+    from ipfit.zeroset.topology import topology_samples
+
+    torus = synthetic.torus(major=1.0, minor=0.3).polynomial
+    verts, faces = _c_shaped_torus()
+    c_shape = Cloud(verts, faces=faces)
+    data = data_topology(c_shape)
+    assert (data.components, data.genus, data.confidence) == (1, (0,), "high")
+    assert quality(torus, c_shape).topology.genus == (1,)
+    places = topology_samples(torus, c_shape)
+    assert len(places)
+    assert np.all(places[:, 0] < 0) and np.all(np.abs(places[:, 1]) < 0.25 + 0.1)
+    assert np.all(np.abs(np.hypot(places[:, 0], places[:, 1]) - 1.0) < 0.3 + 0.1)
+    # the same torus against a whole torus mesh: nothing to hold
+    verts, faces = _c_shaped_torus(gap=0.0)
+    assert len(topology_samples(torus, Cloud(verts, faces=faces))) == 0
+
+
+@pytest.mark.parametrize("where, changes", [("ring", True), ("cavity", True), ("bump", False), ("notch", False)])
+def test_turning_a_region_changes_the_euler_number_exactly_when_the_raster_says_so(where, changes):
+    """Whether turning a region changes the Euler number, judged on the region's box one node
+    wider, as on the whole raster: a handle cut or a cavity made does, a bump or a notch does not."""
+    from skimage.measure import euler_number
+
+    from ipfit.zeroset.topology import _changes_euler
+
+    n = 24
+    x, y, z = np.meshgrid(*(np.linspace(-1.5, 1.5, n),) * 3, indexing="ij")
+    tube = np.hypot(np.hypot(x, y) - 1.0, z)
+    solid = tube < 0.4  # a solid torus: Euler number 0
+    region = np.zeros_like(solid)
+    if where == "ring":  # a cross-section of the ring taken out: a bent cylinder (Euler number 1)
+        region[n // 2 - 1:n // 2 + 1, :n // 3] = solid[n // 2 - 1:n // 2 + 1, :n // 3]
+    else:
+        near = {"cavity": solid & (tube < 0.15), "bump": ~solid & (np.abs(tube - 0.45) < 0.05),
+                "notch": solid & (np.abs(tube - 0.35) < 0.06)}[where]
+        region[tuple(np.argwhere(near)[0])] = True
+    turned = solid ^ region
+    assert (euler_number(turned, connectivity=1) != euler_number(solid, connectivity=1)) == changes
+    box = tuple(slice(max(0, a.min() - 1), a.max() + 2) for a in np.nonzero(region))
+    assert _changes_euler(solid[box], region[box]) == changes
+
+
+def test_a_degree_beyond_the_stop_is_tried_when_the_stop_keeps_another_topology(seed):
+    # (holds for seeds 0-5: IPFIT_TEST_SEED)
+    """A rule that stops after degree 4, whose dumbbell cuts the neck (2 loops) under every repair
+    within the tolerance: degree 6 is tried after the stop, its one loop selected, and the rounds
+    tried at degree 4 are recorded; where degree 4 has the data's topology, nothing more is tried."""
+    from ipfit import fit_adaptive
+    from ipfit.degree.rules import CaptureRule
+    from ipfit.normals import contour_normals
+
+    class StopsAtFour(CaptureRule):
+        def stop(self, results, epsilon):
+            return "flattened" if results[-1].degree >= 4 else None
+
+    points = _dumbbell()
+    result = fit_adaptive(points, contour_normals(points), ordered_contour=True, rule=StopsAtFour(), min_degree=4,
+                          max_degree=10, rng=seed)
+    four, six = result.degrees
+    assert (four.degree, six.degree) == (4, 6) and _neck_broken(four.polynomial)
+    assert four.quality.topology.loops == 2 and four.cleanup
+    assert all(a["topology_matches"] is False or a["f_score"] < six.quality.f_score - 0.01 for a in four.cleanup)
+    assert result.selected_degree == 6 and six.quality.topology.loops == 1 and six.quality.f_score >= 0.99
+    assert "degree 6 was tried after the rule had stopped at degree 4" in result.message
+    assert "rejected" not in four.reason and "superseded" in four.reason
+    # an ellipse has the data's one loop at degree 4 already: the rule's stop stands
+    t = np.linspace(0, 2 * np.pi, 300, endpoint=False)
+    ellipse = np.c_[2 * np.cos(t), np.sin(t)]
+    alone = fit_adaptive(ellipse, contour_normals(ellipse), ordered_contour=True, rule=StopsAtFour(), min_degree=4,
+                         max_degree=10, rng=seed)
+    assert [d.degree for d in alone.degrees] == [4] and "tried after the rule" not in alone.message
+
+
+def test_a_degree_beyond_the_stop_of_another_topology_too_is_recorded_not_selected(seed):
+    # (holds for seeds 0-5: IPFIT_TEST_SEED)
+    """24 small circles: by Harnack's theorem a curve of degree 6 has at most 11 ovals, so the
+    degree tried beyond a stop at 4 cannot have the data's 24 loops either; it is kept in the
+    record, set aside, and the rule's choice stays."""
+    from ipfit import fit_adaptive
+    from ipfit.degree.rules import CaptureRule
+
+    class StopsAtFour(CaptureRule):
+        def stop(self, results, epsilon):
+            return "flattened" if results[-1].degree >= 4 else None
+
+    t = np.linspace(0, 2 * np.pi, 24, endpoint=False)
+    circle = np.c_[np.cos(t), np.sin(t)]
+    centers = 5 * np.c_[np.cos(np.pi * np.arange(24) / 12), np.sin(np.pi * np.arange(24) / 12)]
+    points = np.vstack([c + 0.4 * circle for c in centers])
+    normals = np.tile(circle, (24, 1))
+    result = fit_adaptive(points, normals, ordered_contour=True, rule=StopsAtFour(), min_degree=4, max_degree=10,
+                          rng=seed)
+    assert [d.degree for d in result.degrees] == [4, 6] and result.selected_degree == 4
+    six = result.degrees[1]
+    assert six.quality.data_topology.loops == 24 and six.quality.topology.loops <= 11
+    assert six.cleanup and six.reason.startswith("tried after the rule's stop, for the data's topology:")
+    assert result.message.endswith("where the data has 24): not selected")
+    assert result.reason == "flattened"
+    validate_result(json.loads(json.dumps(result.to_dict())))

@@ -684,6 +684,10 @@ def _degree_loop(cloud: Cloud, unit, settings: _LoopSettings, generator) -> _Loo
     # per degree, for a repair after the loop: its fit before any repair, its refit, its warm start
     unrepaired: list[tuple[DegreeResult, Callable[..., DegreeResult], ImplicitPolynomial | None]] = []
     reason = "max_degree"
+    variant = _variants(results, unrepaired, rule, fitter, work, ordered_contour, progress) \
+        if measured and fitter.options is not None and rule.prefers_topology else None
+    beyond: int | None = None  # a degree tried after the rule's stop, for the data's topology
+    aside: DegreeResult | None = None  # that degree, when it has another topology too
     for degree in degrees:
         if progress is not None:
             progress({"event": "degree_start", "degree": degree})
@@ -718,34 +722,42 @@ def _degree_loop(cloud: Cloud, unit, settings: _LoopSettings, generator) -> _Loo
             topology_differs(before_repair.quality)
         fitter.previous = (before_repair if topology_repaired else entry).polynomial
         results.append(entry)
+        if degree == beyond and variant is not None and topology_differs(entry.quality):
+            # repaired at once, whatever its F-score as fitted: the repair is why it was tried
+            tried, repaired = variant(len(results) - 1)
+            results[-1] = repaired or tried
         if progress is not None:
             progress({"event": "degree_done", **entry.to_dict()})
+        if degree == beyond and topology_differs(results[-1].quality):
+            # tried for the data's topology alone, and it has another one too: the choice stays
+            # among the degrees the rule fitted (the cow's degree 10 gains F-score with two parts)
+            aside = results.pop()
+            break
         stop = rule.stop(results, epsilon)
         # Not trying a higher degree for want of a gain says nothing when there is none to try.
         if stop is not None and not (stop == "no_f_gain" and degree == degrees[-1]):
+            # One degree more when the rule would keep another topology than the data's for want
+            # of a degree of the data's within its tolerance: homer's degree 8 keeps a handle
+            # through a gap of 1 % of its size under every repair, its degree 10 closes it.
+            settled = None if variant is None or beyond is not None or degree == degrees[-1] else \
+                _settled_on_wrong_topology(results, rule, epsilon, stop, variant)
             reason = stop
-            break
-    variant = None
-    if measured and fitter.options is not None and rule.prefers_topology and reason != "interrupted":
-        def variant(i: int) -> tuple[DegreeResult, DegreeResult | None]:
-            fit, refit, fitter.previous = unrepaired[i]  # the polish starts as it did in the loop
-            q = cast(Quality, results[i].quality)
-            event = {"event": "topology_repair", "degree": results[i].degree,
-                     "mismatch": describe_mismatch(cast(Topology, q.topology), cast(Topology, q.data_topology))}
-            if progress is not None:
-                progress(event)
-            entry, repaired = _topology_variant(results[i], fit, refit, cast(SearchOptions, fitter.options), work,
-                                                ordered_contour, rule.best_clean_f(results))
-            if progress is not None:
-                done = cast(Quality, (repaired or entry).quality)
-                progress({**event, "f_score": done.f_score, "matches": repaired is not None,
-                          "seconds": entry.seconds - results[i].seconds})
-            return entry, repaired
-
+            if settled is None:
+                break
+            results[:] = settled  # with the repair rounds tried on the way
+            beyond = degree + 2
     results, index, reason, message = _select(results, rule, epsilon, reason, fixed=len(degrees) == 1,
-                                              variant=variant)
+                                              variant=variant if reason != "interrupted" else None)
+    if beyond is not None and reason != "interrupted":
+        outcome = "" if aside is None else \
+            f", and it has another topology too ({_mismatch(aside)}): not selected"
+        message = (f"{message}; degree {beyond} was tried after the rule had stopped at degree {beyond - 2}, as no "
+                   f"degree up to it within {TOLERANCE:g} of the best clean F-score had the data's topology{outcome}")
     results = [dataclasses.replace(r, reason=rule.reason(results, i, index, message, epsilon))
                for i, r in enumerate(results)]
+    if aside is not None:
+        results.append(dataclasses.replace(aside, reason=f"tried after the rule's stop, for the data's topology: "
+                                                         f"{_mismatch(aside)}"))
     if work is not cloud and reason != "interrupted":
         sampled = f"degrees fitted on {len(work):,} of the {len(cloud):,} points spread evenly"
         try:
@@ -759,6 +771,50 @@ def _degree_loop(cloud: Cloud, unit, settings: _LoopSettings, generator) -> _Loo
             reason = "interrupted"
             message = f"{message}; {sampled}; interrupted while polishing degree {results[index].degree} on every point"
     return _Loop(results, index, reason, message)
+
+
+def _variants(results: list[DegreeResult], unrepaired: list, rule: DegreeRule, fitter: _Fitter, work: Cloud,
+              ordered_contour, progress) -> Callable[[int], tuple[DegreeResult, DegreeResult | None]]:
+    """The ``variant`` a rule that prefers the data's topology settles with (see
+    :meth:`~ipfit.degree.rules.DegreeRule.settle`): degree ``i`` of ``results`` (the loop's list,
+    as it grows) repaired for the topology from its fit before any repair, each degree once."""
+    done: dict[int, tuple[DegreeResult, DegreeResult | None]] = {}
+
+    def variant(i: int) -> tuple[DegreeResult, DegreeResult | None]:
+        if i in done:
+            return done[i]
+        previous = fitter.previous
+        fit, refit, fitter.previous = unrepaired[i]  # the polish starts as it did in the loop
+        event = {"event": "topology_repair", "degree": results[i].degree, "mismatch": _mismatch(results[i])}
+        if progress is not None:
+            progress(event)
+        try:
+            entry, repaired = _topology_variant(results[i], fit, refit, cast(SearchOptions, fitter.options), work,
+                                                ordered_contour, rule.best_clean_f(results))
+        finally:
+            fitter.previous = previous  # a degree still to come starts from the loop's fit
+        if progress is not None:
+            done_q = cast(Quality, (repaired or entry).quality)
+            progress({**event, "f_score": done_q.f_score, "matches": repaired is not None,
+                      "seconds": entry.seconds - results[i].seconds})
+        done[i] = entry, repaired
+        return done[i]
+
+    return variant
+
+
+def _mismatch(entry: DegreeResult) -> str:
+    q = cast(Quality, entry.quality)
+    return describe_mismatch(cast(Topology, q.topology), cast(Topology, q.data_topology))
+
+
+def _settled_on_wrong_topology(results: list[DegreeResult], rule: DegreeRule, epsilon: float, stop: str,
+                               variant) -> list[DegreeResult] | None:
+    """``results`` as ``rule`` settles them when it settles on a clean degree of another topology
+    than the data's (known with confidence), else None."""
+    settled, index, _ = rule.settle(results, epsilon, stop, variant)
+    wrong = rule.is_clean(settled[index].quality) and topology_differs(settled[index].quality)
+    return settled if wrong else None
 
 
 def _working_cloud(cloud: Cloud, unit, options: SearchOptions | None):

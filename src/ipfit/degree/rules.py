@@ -484,8 +484,11 @@ class CaptureRule(DegreeRule):
     within :data:`TOLERANCE` of the best clean F-score that has the data's topology, as fitted or
     repaired to it (a neck held inside, a gap outside: the :data:`TOPOLOGY` rule's repair, tried
     on the degrees of that band only, lowest first), is selected instead. Where no such degree
-    exists (a thin part that can only join the outline at a cost in F-score) the choice stays,
-    its topology reported; the ``"topology"`` rule holds the topology at any cost.
+    exists and the loop stopped below its last degree, :func:`~ipfit.fit_adaptive` fits one
+    degree more, repaired for the topology at once (set aside, recorded, when it has another
+    topology too). Where there is still none (a thin part that can only join the outline at a
+    cost in F-score) the choice stays, its topology reported; the ``"topology"`` rule holds the
+    topology at any cost.
     """
 
     name = "capture"

@@ -523,7 +523,8 @@ def topology_samples(poly: ImplicitPolynomial, cloud: Cloud, *, ordered_contour:
             joins = np.unique(across[grown][ring])
             piece = np.unique(same[grown][mask])
             whole = len(piece) == 1 and int(np.count_nonzero(same == piece[0])) == int(mask.sum())
-            if len(touches[touches > 0]) >= 2 or len(joins[joins > 0]) >= 2 or whole:
+            if len(touches[touches > 0]) >= 2 or len(joins[joins > 0]) >= 2 or whole or \
+                    (cloud.dim == 3 and _changes_euler(f_inside[grown], mask)):
                 idx = np.argwhere(mask) + [sl.start for sl in grown]
                 regions.append(idx)
     places = _spread_places(regions, nodes, cloud, most)
@@ -535,6 +536,17 @@ def topology_samples(poly: ImplicitPolynomial, cloud: Cloud, *, ordered_contour:
     if len(clear) > most:  # evenly over the raster's order: every part of every region keeps some
         clear = clear[np.linspace(0, len(clear) - 1, most).astype(np.int64)]
     return np.concatenate([places, clear])
+
+
+def _changes_euler(solid: NDArray, region: NDArray) -> bool:
+    """Whether turning ``region`` to the other side changes the Euler number of ``solid`` (a box
+    one node wider than the region all round: the Euler number is a sum over 2×2×2 windows, and
+    only the windows in the box see the region, so the box's change is the whole raster's)."""
+    from skimage.measure import euler_number
+
+    turned = solid.copy()
+    turned[region] = ~turned[region]
+    return bool(euler_number(solid, connectivity=1) != euler_number(turned, connectivity=1))
 
 
 def _spread_places(regions: list[NDArray], nodes: list[NDArray], cloud: Cloud, most: int) -> NDArray[np.float64]:
