@@ -491,19 +491,31 @@ def test_turning_a_region_changes_the_euler_number_exactly_when_the_raster_says_
     assert _changes_euler(solid[box], region[box]) == changes
 
 
-def test_a_degree_beyond_the_stop_is_tried_when_the_stop_keeps_another_topology(seed):
+def test_a_degree_beyond_the_stop_is_tried_when_the_stop_keeps_another_topology(seed, monkeypatch):
     # (holds for seeds 0-5: IPFIT_TEST_SEED)
     """A rule that stops after degree 4, whose dumbbell cuts the neck (2 loops) under every repair
     within the tolerance: degree 6 is tried after the stop, its one loop selected, and the rounds
-    tried at degree 4 are recorded; where degree 4 has the data's topology, nothing more is tried."""
+    tried at degree 4 are recorded, the last from its best clean round of one loop; where degree 4
+    has the data's topology, nothing more is tried."""
     from ipfit import fit_adaptive
-    from ipfit.degree.rules import CaptureRule
+    from ipfit.degree import adaptive, repair
+    from ipfit.degree.rules import TOPOLOGY, CaptureRule
     from ipfit.normals import contour_normals
 
     class StopsAtFour(CaptureRule):
         def stop(self, results, epsilon):
             return "flattened" if results[-1].degree >= 4 else None
 
+    rounds = []  # (degree, start, result) of every repair round of a topology variant
+
+    def recorded(entry, refit, *args, **kwargs):
+        def refit_and_record(options, start, keep_clear):
+            trial = refit(options, start, keep_clear)
+            rounds.append((entry.degree, np.array(start), trial))
+            return trial
+        return repair.repair(entry, refit_and_record, *args, **kwargs)
+
+    monkeypatch.setattr(adaptive, "repair", recorded)
     points = _dumbbell()
     result = fit_adaptive(points, contour_normals(points), ordered_contour=True, rule=StopsAtFour(), min_degree=4,
                           max_degree=10, rng=seed)
@@ -511,6 +523,12 @@ def test_a_degree_beyond_the_stop_is_tried_when_the_stop_keeps_another_topology(
     assert (four.degree, six.degree) == (4, 6) and _neck_broken(four.polynomial)
     assert four.quality.topology.loops == 2 and four.cleanup
     assert all(a["topology_matches"] is False or a["f_score"] < six.quality.f_score - 0.01 for a in four.cleanup)
+    # the last round of degree 4 starts from its best clean round of one loop (the others from its fit)
+    at_four = [(start, trial) for degree, start, trial in rounds if degree == 4]
+    assert len(at_four) == len(four.cleanup)
+    one_loop = [trial for _, trial in at_four[:-1] if TOPOLOGY.is_clean(trial.quality)]
+    best = max(one_loop, key=lambda t: t.quality.f_score)
+    assert np.allclose(at_four[-1][0], best.x) and not np.allclose(at_four[0][0], best.x)
     assert result.selected_degree == 6 and six.quality.topology.loops == 1 and six.quality.f_score >= 0.99
     assert "degree 6 was tried after the rule had stopped at degree 4" in result.message
     assert "rejected" not in four.reason and "superseded" in four.reason
