@@ -218,7 +218,8 @@ SCHEMA: tuple[Key, ...] = (
     _k("degrees[].nfev", "integer >= 0", "objective evaluations at that degree"),
     _k("degrees[].success", "boolean", "the method reached a finite fit"),
     _k("degrees[].message", "string", "how the method ended (each stage)"),
-    _k("degrees[].reason", "string", "why the degree was selected, rejected or not needed, in one line"),
+    _k("degrees[].reason", "string", "why the degree was selected, rejected or not needed (or, tried after the rule's "
+       "stop for the data's topology, set aside), in one line"),
     _k("degrees[].cleanup", "list of objects", "refits with stronger far-field terms of a degree that was not clean "
        "or not precise, or that missed part of the data; then, if still not clean, the search's other solutions "
        "measured"),
