@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
@@ -525,7 +526,10 @@ def test_a_degree_beyond_the_stop_is_tried_when_the_stop_keeps_another_topology(
     assert all(a["topology_matches"] is False or a["f_score"] < six.quality.f_score - 0.01 for a in four.cleanup)
     # the last round of degree 4 starts from its best clean round of one loop (the others from its fit)
     at_four = [(start, trial) for degree, start, trial in rounds if degree == 4]
-    assert len(at_four) == len(four.cleanup)
+    # the search's other solutions are measured first (none has one loop here), then the rounds
+    others = [a for a in four.cleanup if a["target"] == "another solution"]
+    assert list(four.cleanup[:len(others)]) == others and len(others) == len(four.solutions) - 1
+    assert len(at_four) == len(four.cleanup) - len(others)
     one_loop = [trial for _, trial in at_four[:-1] if TOPOLOGY.is_clean(trial.quality)]
     best = max(one_loop, key=lambda t: t.quality.f_score)
     assert np.allclose(at_four[-1][0], best.x) and not np.allclose(at_four[0][0], best.x)
@@ -566,3 +570,35 @@ def test_a_degree_beyond_the_stop_of_another_topology_too_is_recorded_not_select
     assert result.message.endswith("where the data has 24): not selected")
     assert result.reason == "flattened"
     validate_result(json.loads(json.dumps(result.to_dict())))
+
+
+def test_another_solution_of_the_data_topology_spares_the_repair():
+    """When one of the search's other solutions of a degree has the data's topology within the
+    tolerance, the topology variant takes it and runs no repair round."""
+    from ipfit import fit_adaptive
+    from ipfit.degree.adaptive import _measured_fit, _topology_variant
+    from ipfit.fitting.options import RECOMMENDED
+    from ipfit.normals import contour_normals
+
+    points = _dumbbell()
+    normals = contour_normals(points)
+    cloud = Cloud(points, normals)
+    four = fit_adaptive(cloud, ordered_contour=True, min_degree=4, max_degree=4, rng=0).degrees[0]
+    assert four.quality.topology.loops == 2
+    # one loop round the dumbbell at degree 4 (x⁴/81 + y² = 1, through both discs' far ends)
+    loop = synthetic.from_terms(2, 4, {(4, 0): 1 / 81, (0, 2): 1.0, (0, 0): -1.0})
+    entry = dataclasses.replace(four, solutions=(four.polynomial, loop), cleanup=())
+
+    def measure(poly):
+        return _measured_fit(entry, poly, cloud, cloud.oriented, 0.01, True)
+
+    def refit(*args):
+        raise AssertionError("no repair round when another solution will do")
+
+    f_loop = measure(loop).quality.f_score
+    tried, taken = _topology_variant(entry, entry, refit, measure, RECOMMENDED, cloud, True, best_f=f_loop + 0.005)
+    assert taken is not None and taken.quality.topology.loops == 1 and np.allclose(taken.x, measure(loop).x)
+    assert [a["target"] for a in taken.cleanup] == ["another solution"] and tried.cleanup == taken.cleanup
+    # out of the tolerance, the repair runs after it (and is recorded)
+    with pytest.raises(AssertionError, match="no repair round"):
+        _topology_variant(entry, entry, refit, measure, RECOMMENDED, cloud, True, best_f=f_loop + 0.05)

@@ -681,8 +681,10 @@ def _degree_loop(cloud: Cloud, unit, settings: _LoopSettings, generator) -> _Loo
                      settings.noise)
     degrees = list(range(min_degree, top + 1, 2)) if top > min_degree else [min_degree]
     results: list[DegreeResult] = []
-    # per degree, for a repair after the loop: its fit before any repair, its refit, its warm start
-    unrepaired: list[tuple[DegreeResult, Callable[..., DegreeResult], ImplicitPolynomial | None]] = []
+    # per degree, for a topology variant after the loop: its fit before any repair, its refit, its
+    # measure of another polynomial, its warm start
+    unrepaired: list[tuple[DegreeResult, Callable[..., DegreeResult], Callable[..., DegreeResult],
+                           ImplicitPolynomial | None]] = []
     reason = "max_degree"
     variant = _variants(results, unrepaired, rule, fitter, work, ordered_contour, progress) \
         if measured and fitter.options is not None and rule.prefers_topology else None
@@ -703,13 +705,13 @@ def _degree_loop(cloud: Cloud, unit, settings: _LoopSettings, generator) -> _Loo
                 entry = repair(entry, refit, fitter.options, work, ordered_contour, rule, best_f)
             if measured and fitter.options is not None and rule.fills_missing(entry, best_f):
                 entry = fill_missing(entry, refit, fitter.options, work, ordered_contour, rule)
+
+            def measure(poly, fitted=before_repair):
+                return _measured_fit(fitted, poly, work, work_unit, delta, ordered_contour)
+
             if measured and fitter.options is not None and not rule.is_clean(entry.quality):
-
-                def measure(poly, fitted=before_repair):
-                    return _measured_fit(fitted, poly, work, work_unit, delta, ordered_contour)
-
                 entry = other_solutions(entry, before_repair.solutions, measure, fitter.options, rule)
-            unrepaired.append((before_repair, refit, fitter.previous))
+            unrepaired.append((before_repair, refit, measure, fitter.previous))
         except KeyboardInterrupt:
             if not results:
                 raise
@@ -784,13 +786,13 @@ def _variants(results: list[DegreeResult], unrepaired: list, rule: DegreeRule, f
         if i in done:
             return done[i]
         previous = fitter.previous
-        fit, refit, fitter.previous = unrepaired[i]  # the polish starts as it did in the loop
+        fit, refit, measure, fitter.previous = unrepaired[i]  # the polish starts as it did in the loop
         event = {"event": "topology_repair", "degree": results[i].degree, "mismatch": _mismatch(results[i])}
         if progress is not None:
             progress(event)
         try:
-            entry, repaired = _topology_variant(results[i], fit, refit, cast(SearchOptions, fitter.options), work,
-                                                ordered_contour, rule.best_clean_f(results))
+            entry, repaired = _topology_variant(results[i], fit, refit, measure, cast(SearchOptions, fitter.options),
+                                                work, ordered_contour, rule.best_clean_f(results))
         finally:
             fitter.previous = previous  # a degree still to come starts from the loop's fit
         if progress is not None:
@@ -880,19 +882,30 @@ class _WithinTolerance(TopologyRule):
 
 
 def _topology_variant(entry: DegreeResult, unrepaired: DegreeResult, refit: Callable[..., DegreeResult],
-                      options: SearchOptions, cloud: Cloud, ordered_contour,
-                      best_f: float) -> tuple[DegreeResult, DegreeResult | None]:
-    """``entry`` (a degree as its rule repaired it, of another topology than the data's) with the
-    rounds of the topology rule's repair of its unrepaired fit recorded, and that repair when it
-    reached a clean zero set of the data's topology (else None); the repair goes on until one is
-    within the tolerance of ``best_f``. Both carry every round of both repairs, their evaluations
-    and their time."""
-    repaired = repair(unrepaired, refit, options, cloud, ordered_contour, _WithinTolerance(), best_f)
-    totals = {"cleanup": tuple(entry.cleanup) + tuple(repaired.cleanup),
-              "nfev": entry.nfev + repaired.nfev - unrepaired.nfev,
-              "seconds": entry.seconds + sum(a["seconds"] for a in repaired.cleanup)}
-    fixed = repaired is not unrepaired and TOPOLOGY.is_clean(repaired.quality)
-    return dataclasses.replace(entry, **totals), dataclasses.replace(repaired, **totals) if fixed else None
+                      measure: Callable[[ImplicitPolynomial], DegreeResult], options: SearchOptions, cloud: Cloud,
+                      ordered_contour, best_f: float) -> tuple[DegreeResult, DegreeResult | None]:
+    """``entry`` (a degree as its rule repaired it, of another topology than the data's) with what
+    was tried for the data's topology recorded, and the best of it when that has a clean zero set
+    of the data's topology (else None): first the search's other solutions of the degree (each
+    measured by ``measure``), then, unless one of them is within the tolerance of ``best_f``, the
+    topology rule's repair of its unrepaired fit, going on until a round is. Both carry every
+    attempt, their evaluations and their time."""
+    within = _WithinTolerance()
+    other = other_solutions(unrepaired, unrepaired.solutions, measure, options, within)
+    attempts = tuple(other.cleanup[len(unrepaired.cleanup):])
+    nfev = 0
+    best = other
+    if not within.is_done(other, best_f):
+        repaired = repair(unrepaired, refit, options, cloud, ordered_contour, within, best_f)
+        attempts += tuple(repaired.cleanup)
+        nfev = repaired.nfev - unrepaired.nfev
+        if TOPOLOGY.is_clean(repaired.quality) and (not TOPOLOGY.is_clean(other.quality) or
+                                                    repaired.quality.f_score >= other.quality.f_score):
+            best = repaired
+    totals = {"cleanup": tuple(entry.cleanup) + attempts, "nfev": entry.nfev + nfev,
+              "seconds": entry.seconds + sum(a["seconds"] for a in attempts)}
+    fixed = TOPOLOGY.is_clean(best.quality)
+    return dataclasses.replace(entry, **totals), dataclasses.replace(best, **totals) if fixed else None
 
 
 def _select(results, rule: DegreeRule, epsilon: float, reason: str, fixed: bool,
