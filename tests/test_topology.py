@@ -602,3 +602,25 @@ def test_another_solution_of_the_data_topology_spares_the_repair():
     # out of the tolerance, the repair runs after it (and is recorded)
     with pytest.raises(AssertionError, match="no repair round"):
         _topology_variant(entry, entry, refit, measure, RECOMMENDED, cloud, True, best_f=f_loop + 0.05)
+
+
+def test_an_interrupt_while_deciding_on_a_degree_beyond_the_stop_keeps_the_fit_so_far():
+    """Ctrl-C during the topology repair that decides whether to go beyond the rule's stop: the
+    degrees fitted stand and the run says it was interrupted, as for an interrupt in the loop."""
+    from ipfit import fit_adaptive
+    from ipfit.degree.rules import CaptureRule
+    from ipfit.normals import contour_normals
+
+    class StopsAtFour(CaptureRule):
+        def stop(self, results, epsilon):
+            return "flattened" if results[-1].degree >= 4 else None
+
+    def progress(event):
+        if event["event"] == "topology_repair":
+            raise KeyboardInterrupt
+
+    points = _dumbbell()
+    result = fit_adaptive(points, contour_normals(points), ordered_contour=True, rule=StopsAtFour(), min_degree=4,
+                          max_degree=10, rng=0, progress=progress)
+    assert [d.degree for d in result.degrees] == [4] and result.selected_degree == 4
+    assert result.reason == "interrupted" and "tried after the rule" not in result.message

@@ -724,26 +724,34 @@ def _degree_loop(cloud: Cloud, unit, settings: _LoopSettings, generator) -> _Loo
             topology_differs(before_repair.quality)
         fitter.previous = (before_repair if topology_repaired else entry).polynomial
         results.append(entry)
-        if degree == beyond and variant is not None and topology_differs(entry.quality):
-            # repaired at once, whatever its F-score as fitted: the repair is why it was tried
-            tried, repaired = variant(len(results) - 1)
-            results[-1] = repaired or tried
         if progress is not None:
             progress({"event": "degree_done", **entry.to_dict()})
-        if degree == beyond and topology_differs(results[-1].quality):
-            # tried for the data's topology alone, and it has another one too: the choice stays
-            # among the degrees the rule fitted (the cow's degree 10 gains F-score with two parts)
-            aside = results.pop()
-            break
+        if degree == beyond:
+            try:  # repaired at once, whatever its F-score as fitted: the repair is why it was tried
+                if variant is not None and topology_differs(entry.quality):
+                    tried, repaired = variant(len(results) - 1)
+                    results[-1] = repaired or tried
+            except KeyboardInterrupt:
+                reason = "interrupted"
+            if topology_differs(results[-1].quality):
+                # tried for the data's topology alone, and it has another one too: the choice stays
+                # among the degrees the rule fitted (the cow's degree 10 gains F-score with two parts)
+                aside = results.pop()
+                break
+            if reason == "interrupted":
+                break
         stop = rule.stop(results, epsilon)
         # Not trying a higher degree for want of a gain says nothing when there is none to try.
         if stop is not None and not (stop == "no_f_gain" and degree == degrees[-1]):
             # One degree more when the rule would keep another topology than the data's for want
             # of a degree of the data's within its tolerance: homer's degree 8 keeps a handle
             # through a gap of 1 % of its size under every repair, its degree 10 closes it.
-            settled = None if variant is None or beyond is not None or degree == degrees[-1] else \
-                _settled_on_wrong_topology(results, rule, epsilon, stop, variant)
             reason = stop
+            try:
+                settled = None if variant is None or beyond is not None or degree == degrees[-1] else \
+                    _settled_on_wrong_topology(results, rule, epsilon, stop, variant)
+            except KeyboardInterrupt:  # the degrees fitted stand, as when a degree is interrupted
+                reason, settled = "interrupted", None
             if settled is None:
                 break
             results[:] = settled  # with the repair rounds tried on the way

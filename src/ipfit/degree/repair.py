@@ -171,7 +171,6 @@ def repair(entry: DegreeResult, refit: Callable[..., DegreeResult], options: Sea
         # the horse silhouette's degree 14 needed the second set under 2 of 5 seeds.
         steps = np.geomspace(weights[0], weights[-1], 2 * len(weights) - 1) if len(weights) > 1 else weights
         weights = (weights[0], *(float(w) for w in steps), float(steps[-1]), float(steps[-1]))
-
     for weight in weights:
         # Spurious components first (their samples alone, as many as a bulge would otherwise take).
         found = stray_samples(current.polynomial, cloud, ordered_contour=bool(ordered_contour),
@@ -207,7 +206,7 @@ def repair(entry: DegreeResult, refit: Callable[..., DegreeResult], options: Sea
     if fix_topology and best is not entry and rule.is_clean(best.quality) and not rule.is_done(best, best_f):
         # A clean round of the data's topology, not yet done: one round more from it, at the first
         # weight, every place held (homer's degree 10 closing the gap between its feet: F 0.975
-        # from the degree's own fit, 0.99 from there).
+        # from the degree's own fit, 0.986 from there).
         trial = refit(_round_options(options, weights[0], cloud.dim), best.x, np.concatenate(places))
         nfev += trial.nfev
         attempts.append(_attempt(target, weights[0], trial, rule))

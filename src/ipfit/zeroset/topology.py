@@ -479,7 +479,9 @@ def topology_samples(poly: ImplicitPolynomial, cloud: Cloud, *, ordered_contour:
     pieces of the polynomial's inside (a cut neck) or of its outside (a bridge), or two pieces of
     the data's other side (a cut through the solid between two of its boundaries, an envelope
     round two parts), or when it is a whole piece of the polynomial's inside or outside (an extra
-    loop, an extra hole); bands along the data where the zero set is merely a little off do not.
+    loop, an extra hole), or, in 3D, when turning it changes the raster's Euler number (a handle
+    or a tunnel the data has not, which joins no pieces: homer's feet bridged); bands along the
+    data where the zero set is merely a little off do not.
     Each region that matters gets an equal share of the places, those farthest from the data
     first (the middle of a neck or of a gap).
 
