@@ -172,6 +172,28 @@ def test_a_mesh_component_of_unknown_genus_matches_any_genus_but_not_another_cou
     assert torus.matches(Topology(3, 1, euler=(2,), genus=(0,))) is False
 
 
+def test_a_chain_of_spheres_meeting_at_vertices_has_no_genus():
+    """Three closed spheres in a row, each touching the next at one shared vertex: one connected
+    mesh of χ = 3 · 2 − 2 = 4, which no closed orientable surface has (its genus would be −1):
+    the genus is unknown."""
+    import trimesh
+
+    from ipfit.zeroset.topology import _mesh_topology
+
+    s = trimesh.creation.icosphere(1)
+    v, f = np.asarray(s.vertices), np.asarray(s.faces)
+    right, left = int(np.argmax(v[:, 0])), int(np.argmin(v[:, 0]))
+    n = len(v)
+    # the middle sphere's leftmost vertex is the left one's rightmost, and so on to the right
+    shift = v[right] - v[left]
+    vertices = np.vstack([v - shift, v, v + shift])
+    faces = np.vstack([f, f + n, f + 2 * n])
+    faces[faces == right] = n + left          # left sphere's right pole -> middle's left pole
+    faces[faces == n + right] = 2 * n + left  # middle's right pole -> right sphere's left pole
+    topo = _mesh_topology(vertices, faces)
+    assert topo.components == 1 and topo.open == 0 and topo.euler == (4,) and topo.genus == (None,)
+
+
 def test_bare_3d_cloud_counts_components():
     s = synthetic.sphere(400)
     two = np.vstack([s.points, s.points + [4.0, 0.0, 0.0]])  # 2 apart: wider than 6 spacings

@@ -98,7 +98,7 @@ class Topology:
     open : those of them that are open (2D arcs; 3D surfaces with a border).
     nesting : 2D: the depth of each loop (0: inside no other loop; 1: inside one...), sorted.
     euler, genus : 3D: χ and g of each closed component, sorted by genus then χ; a genus is
-        None where χ is odd (not a closed orientable surface). For an open mesh of the data,
+        None where χ is odd or above 2 (not one closed orientable surface). For an open mesh of the data,
         of every component with its holes capped (and a zero set is compared with that closed
         surface: its openness is not).
     ignored : specks left out (a zero set's), or tiny pieces left out of an estimate (bare data).
@@ -274,8 +274,9 @@ def _euler_per_label(faces: NDArray, labels: NDArray, n: int) -> NDArray[np.int6
 
 
 def _euler_genus(euler: list[int]) -> tuple[tuple[int, ...], tuple[int | None, ...]]:
-    """(χ, genus) of closed surfaces, sorted by genus then χ (a genus is None where χ is odd)."""
-    genus = [(2 - x) // 2 if x % 2 == 0 else None for x in euler]
+    """(χ, genus) of closed surfaces, sorted by genus then χ (a genus is None where χ is odd, or
+    above 2: not one closed orientable surface, e.g. spheres meeting at a vertex)."""
+    genus = [(2 - x) // 2 if x % 2 == 0 and x <= 2 else None for x in euler]
     order = sorted(range(len(euler)), key=lambda i: (_genus_key(genus[i]), euler[i]))
     return tuple(euler[i] for i in order), tuple(genus[i] for i in order)
 
