@@ -745,7 +745,7 @@ def _degree_loop(cloud: Cloud, unit, settings: _LoopSettings, generator) -> _Loo
         if stop is not None and not (stop == "no_f_gain" and degree == degrees[-1]):
             # One degree more when the rule would keep another topology than the data's for want
             # of a degree of the data's within its tolerance: homer's degree 8 keeps a handle
-            # through a gap of 1 % of its size under every repair, its degree 10 closes it.
+            # across the narrow gap between its feet under every repair, its degree 10 closes it.
             reason = stop
             try:
                 settled = None if variant is None or beyond is not None or degree == degrees[-1] else \
