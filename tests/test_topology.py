@@ -11,6 +11,7 @@ import pytest
 from ipfit import Cloud
 from ipfit.datasets import synthetic
 from ipfit.degree.results import validate_result
+from ipfit.degree.rules import CaptureRule
 from ipfit.geometry.distance import contour_pieces
 from ipfit.zeroset.extract import extract_zero_set
 from ipfit.zeroset.quality import quality
@@ -514,17 +515,11 @@ def test_turning_a_region_changes_the_euler_number_exactly_when_the_raster_says_
     assert _changes_euler(solid[box], region[box]) == changes
 
 
-class _StopsAtFour:
-    """A capture rule that stops after degree 4 (made lazily: the rule classes import numba)."""
+class _StopsAtFour(CaptureRule):
+    """The capture rule, stopping after degree 4."""
 
-    def __new__(cls):
-        from ipfit.degree.rules import CaptureRule
-
-        class StopsAtFour(CaptureRule):
-            def stop(self, results, epsilon):
-                return "flattened" if results[-1].degree >= 4 else None
-
-        return StopsAtFour()
+    def stop(self, results, epsilon):
+        return "flattened" if results[-1].degree >= 4 else None
 
 
 def _circles(k: int, radius: float, n: int = 40) -> tuple[np.ndarray, np.ndarray]:
