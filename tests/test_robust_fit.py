@@ -124,6 +124,14 @@ def test_the_kept_weighting_is_the_one_that_measures_better():
     # a spurious loop never replaces a clean fit, even one of a lower F-score
     assert q["spurious"].f_score > q["shifted"].f_score
     assert not better(spurious, shifted)
+    # unless the clean fit misses the data: a small loop inside the circle that touches it is
+    # clean (no part of it far from the data) but follows a tenth of it, and the fit through
+    # every point is better however unclean
+    tiny = synthetic.circle(200, radius=0.25, center=(0.75, 0.0)).polynomial
+    missed = ipfit.quality(tiny, points)
+    assert CAPTURE.is_clean(missed) and missed.f_score < 0.2
+    assert better(spurious, tiny) and not better(tiny, spurious)
+    assert not better(tiny, exact)
 
 
 # An ellipse and a sphere leave a degree-2 fit no room to bend to the outliers (today's fit of

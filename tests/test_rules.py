@@ -15,7 +15,7 @@ from ipfit.datasets import load_dataset, synthetic
 from ipfit.exceptions import InvalidInputError
 from ipfit.zeroset.quality import Quality
 from ipfit.degree.rules import (CAPTURE, CAPTURE_USUAL_DEGREE, EXTEND_BELOW, GAIN, GEOMETRIC, MISSING_RECALL, PAPER,
-                                PATIENCE, RULES, TOLERANCE, CaptureRule, DegreeRule, capture_stop, gains,
+                                MISSES_BELOW, PATIENCE, RULES, TOLERANCE, CaptureRule, DegreeRule, capture_stop, gains,
                                 get_rule, is_clean, select_degree_capture, topology_differs)
 
 
@@ -42,6 +42,30 @@ def test_lowest_clean_degree_within_the_tolerance_of_the_best_is_selected():
     assert select_degree_capture([2, 4], [0.80, 0.80 + TOLERANCE + 1e-6], [True, True]) == 1
     # no clean degree: the best F-score
     assert select_degree_capture([2, 4, 6], [0.5, 0.7, 0.6], [False, False, False]) == 1
+
+
+def test_a_clean_degree_that_misses_the_data_is_no_fit():
+    # A closed ellipsoid beside most of a noisy thin shape (F 0.45) against a degree that follows
+    # it with one spurious piece (F 0.89): the second is taken, said so, and is no success.
+    assert select_degree_capture([2, 4, 6], [0.45, 0.70, 0.89], [True, False, False]) == 2
+    assert select_degree_capture([2, 4, 6], [MISSES_BELOW, 0.70, 0.89], [True, False, False]) == 0
+    # among clean degrees that follow the data the floor changes nothing
+    assert select_degree_capture([2, 4, 6], [0.45, 0.60, 0.89], [True, True, False]) == 1
+    piece = {"size": 0.3, "share": 0.05, "center": (1.0, 0.0), "distance": 0.4}
+    entries = _path((2, 0.5, 0.1, 0.45), (4, 0.6, 0.05, 0.70), (6, 0.7, 0.02, 0.89))
+    for entry in entries[1:]:
+        entry.quality = dataclasses.replace(entry.quality, spurious=(piece,), n_spurious=1, closed=False)
+    index, reason = CAPTURE.select(entries, 0.01, "max_degree")
+    assert index == 2
+    message = CAPTURE.explain(entries, index, reason, 0.01)
+    assert message.startswith("degree 6: the clean degrees miss the data (best clean F-score 0.450, below 0.5)")
+    assert CAPTURE.reason(entries, 0, index, message, 0.01).startswith(
+        "clean, but misses the data: F-score 0.450 is below 0.5")
+    assert not CAPTURE.success(entries, index)
+    # with no clean degree at all the message is as before
+    entries[0].quality = entries[1].quality
+    assert "no degree tried is clean" in CAPTURE.explain(entries, CAPTURE.select(entries, 0.01, "max_degree")[0],
+                                                         "max_degree", 0.01)
 
 
 def test_a_face_that_gains_little_smoothness_but_much_shape_goes_on():

@@ -61,6 +61,7 @@ from ..zeroset.topology import Topology, describe_mismatch
 from .repair import fill_missing, other_solutions, repair
 from .rules import (
     EXTEND_BELOW,
+    MISSES_BELOW,
     RULES,
     TOLERANCE,
     TOPOLOGY,
@@ -148,8 +149,10 @@ class AdaptiveResult(Result):
         selected degree (as on its :class:`DegreeResult`).
     nit, nfev : iterations and objective evaluations over all degrees.
     n_degrees : the number of degrees tried (``len(degrees)``).
-    success : a degree was selected by the rule on a complete path (False when interrupted,
-        or when the geometric rule found no clean degree).
+    success : a degree was selected by the rule on a complete path, clean unless no degree
+        was (False when interrupted, or when an unclean degree was selected over clean ones:
+        the capture rule's clean degrees missed the data, F-score below
+        :data:`~ipfit.degree.rules.MISSES_BELOW`).
     message : which degree was selected and why, in words.
     polynomial : the fit at the selected degree (measures filled in).
     selected_degree : int
@@ -575,13 +578,16 @@ class _Loop:
 def _measures_better(one: _Loop, other: _Loop, points: Cloud, rule: DegreeRule) -> bool:
     """Whether ``one``'s selected degree measures better than ``other``'s on ``points``: a higher
     F-score, and clean there unless ``other``'s is not either (a sheet grown through strays the
-    score missed is spurious on them; a fit that is clean is never traded for one that is not)."""
+    score missed is spurious on them; a fit that is clean is not traded for one that is not) or
+    misses the data (F-score below :data:`~ipfit.degree.rules.MISSES_BELOW`: the bare Turk
+    scissors' closed blob of F 0.02 on its points was kept over a degree 4 of F 0.67 that is not
+    closed inside the box)."""
     def measured(loop: _Loop) -> tuple[bool, float]:
         q = quality(loop.results[loop.index].polynomial, points)
         return bool(rule.is_clean(q)), q.f_score
 
     (one_clean, one_f), (other_clean, other_f) = measured(one), measured(other)
-    return one_f > other_f and (one_clean or not other_clean)
+    return one_f > other_f and (one_clean or not other_clean or other_f < MISSES_BELOW)
 
 
 def _against_gradient(poly: ImplicitPolynomial, points: NDArray, normals: NDArray) -> NDArray[np.bool_]:

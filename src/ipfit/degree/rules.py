@@ -14,8 +14,10 @@
   usual top degree and rarely pay elsewhere (docs/quality-3d.md, docs/max-degree-2d.md);
 * **select** the lowest clean degree whose F-score is within :data:`TOLERANCE` of the best
   clean F-score, so simple shapes keep low degrees and a degree that bulges (lower precision,
-  hence lower F) is not preferred over one that does not. With no clean degree, the highest
-  F-score (and ``success`` is False);
+  hence lower F) is not preferred over one that does not. A clean degree whose F-score is
+  below :data:`MISSES_BELOW` misses the data and does not count (a closed blob beside the
+  points is no fit). With no clean degree that follows the data, the highest F-score (and
+  ``success`` is False when a clean degree was passed over);
 * **prefer the data's topology** where the data tells it with confidence: when that choice has
   another, the lowest degree of the band (within :data:`TOLERANCE` of the best clean F-score)
   that has the data's topology, as fitted or repaired to it, is selected instead
@@ -66,7 +68,7 @@ __all__ = ["RULES", "DegreeRule", "CaptureRule", "GeometricRule", "PaperRule", "
            "is_clean", "describe_unclean", "topology_differs", "GAIN", "DISTANCE_GAIN", "PATIENCE", "TOLERANCE",
            "is_speck", "SPECK_REACH", "DEFAULT_MAX_DEGREE", "CAPTURE_MAX_DEGREE",
            "CAPTURE_USUAL_DEGREE", "EXTEND_BELOW", "PRECISION_TARGET", "REPAIR_RECALL",
-           "MISSING_RECALL"]
+           "MISSING_RECALL", "MISSES_BELOW"]
 
 #: Maximum degree tried by default, per dimension (the paper: degrees 2 to 10 are the norm).
 DEFAULT_MAX_DEGREE = {2: 10, 3: 8}
@@ -104,6 +106,13 @@ REPAIR_RECALL = 0.9
 #: capture rule, 3D: a clean, precise degree whose recall is below this gets a round for the
 #: surface it misses (:meth:`CaptureRule.fills_missing`).
 MISSING_RECALL = 0.95
+#: capture rule: a clean degree whose F-score is below this misses most of the data, and being
+#: clean protects nothing then: the selection does not prefer it to a degree that follows the
+#: data but is not clean (:func:`select_degree_capture`), nor does the comparison of whole fits
+#: in :func:`ipfit.fit_adaptive`. Noisy and sparse 3D clouds of thin shapes end there: the Turk
+#: airplane at σ = 0.5 % of the diagonal kept an ellipsoid of F 0.48 on its points over a
+#: degree 6 of F 0.89 with one spurious piece (docs/reorient.md).
+MISSES_BELOW = 0.5
 
 
 def select_degree(degrees: Sequence[int], smoothness: Sequence[float], epsilon: float = 0.01,
@@ -255,17 +264,20 @@ def capture_stop(entries, epsilon: float, usual_degrees: Mapping[int, int] = CAP
 
 def select_degree_capture(degrees: Sequence[int], f_scores: Sequence[float], clean: Sequence[bool]) -> int:
     """The capture rule's choice: the lowest clean degree whose F-score is within
-    :data:`TOLERANCE` of the best clean one; with no clean degree, the same among all degrees
-    (the lowest within :data:`TOLERANCE` of the best F-score: a higher degree must gain more
-    than that to be worth its unclean zero set too).
+    :data:`TOLERANCE` of the best clean one, among the clean degrees that follow the data
+    (F-score at least :data:`MISSES_BELOW`); with none, the same among all degrees (the lowest
+    within :data:`TOLERANCE` of the best F-score: a higher degree must gain more than that to be
+    worth its unclean zero set too).
 
     >>> select_degree_capture([2, 4, 6, 8], [0.70, 0.951, 0.958, 0.99], [True, True, True, False])
+    1
+    >>> select_degree_capture([2, 4, 6], [0.48, 0.89, 0.78], [True, False, False])
     1
     """
     if len(degrees) != len(f_scores) or len(degrees) != len(clean) or not degrees:
         raise error("f_scores", "one F-score and one clean flag per degree",
                     f"{len(f_scores)} and {len(clean)} for {len(degrees)} degrees")
-    pool = [i for i in range(len(degrees)) if clean[i]] or list(range(len(degrees)))
+    pool = [i for i in range(len(degrees)) if clean[i] and f_scores[i] >= MISSES_BELOW] or list(range(len(degrees)))
     best = max(f_scores[i] for i in pool)
     return min((i for i in pool if f_scores[i] >= best - TOLERANCE), key=lambda i: degrees[i])
 
@@ -563,7 +575,10 @@ class CaptureRule(DegreeRule):
                     "max_degree": "the last degree was reached",
                     "interrupted": "the run was interrupted"}[reason]
         if not self.is_clean(chosen.quality):
-            return (f"degree {chosen.degree}: no degree tried is clean, so the lowest degree within {TOLERANCE:g} "
+            clean_f = self.best_clean_f(results)
+            none = "no degree tried is clean" if not any(self.is_clean(r.quality) for r in results) else \
+                f"the clean degrees miss the data (best clean F-score {clean_f:.3f}, below {MISSES_BELOW:g})"
+            return (f"degree {chosen.degree}: {none}, so the lowest degree within {TOLERANCE:g} "
                     f"of the best F-score was taken ({chosen.quality.f_score:.3f}); the loop stopped: {stop}")
         right = not topology_differs(chosen.quality)
         lower_wrong = any(self.is_clean(r.quality) and topology_differs(r.quality) and r.degree < chosen.degree
@@ -592,6 +607,8 @@ class CaptureRule(DegreeRule):
         if not self.is_clean(entry.quality):
             return "rejected: " + (describe_unclean(entry.quality) or "empty zero set") + tail
         f, best = entry.quality.f_score, chosen.quality.f_score
+        if f < MISSES_BELOW and not self.is_clean(chosen.quality):
+            return f"clean, but misses the data: F-score {f:.3f} is below {MISSES_BELOW:g}" + tail
         if f < best - TOLERANCE:
             return (f"superseded: F-score {f:.3f} is more than {TOLERANCE:g} below degree {chosen.degree}'s "
                     f"{best:.3f}" + tail)
