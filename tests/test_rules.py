@@ -14,9 +14,10 @@ from ipfit import fit_adaptive
 from ipfit.datasets import load_dataset, synthetic
 from ipfit.exceptions import InvalidInputError
 from ipfit.zeroset.quality import Quality
-from ipfit.degree.rules import (CAPTURE, CAPTURE_USUAL_DEGREE, EXTEND_BELOW, GAIN, GEOMETRIC, MISSING_RECALL, PAPER,
-                                MISSES_BELOW, PATIENCE, RULES, TOLERANCE, CaptureRule, DegreeRule, capture_stop, gains,
-                                get_rule, is_clean, select_degree_capture, topology_differs)
+from ipfit.degree.rules import (CAPTURE, CAPTURE_USUAL_DEGREE, EXTEND_BELOW, GAIN, GEOMETRIC, MISSES_BELOW,
+                                MISSING_RECALL, PAPER, PATIENCE, RULES, TOLERANCE, TOPOLOGY, TOPOLOGY_BAND, CaptureRule,
+                                DegreeRule, capture_stop, gains, get_rule, is_clean, select_degree_capture,
+                                topology_differs)
 
 
 def _quality(f=0.9, recall=None, d2z=0.01, spurious=(), n_open=0, tau=0.05, n_components=1) -> Quality:
@@ -554,6 +555,45 @@ def test_a_choice_of_the_data_topology_is_left_alone():
     assert chosen is path[0] and asked == []          # no repair is even tried
     # a rule that does not prefer the topology never asks for one
     assert _settle(_blind(), [path[1], _topo_entry(10, 0.99, 1)])[1] == []
+
+
+def _solid_entry(degree: int, f: float, pieces: int):
+    """A clean 3D degree whose zero set has ``pieces`` spheres where the data (a closed mesh) has one."""
+    from ipfit.zeroset.topology import Topology
+
+    data = Topology(3, 1, euler=(2,), genus=(0,), source="mesh")
+    zero_set = Topology(3, pieces, euler=(2,) * pieces, genus=(0,) * pieces)
+    q = dataclasses.replace(_quality(f), topology=zero_set, data_topology=data)
+    return SimpleNamespace(degree=degree, quality=q, smoothness=0.9, distance=0.1, cleanup=())
+
+
+def test_in_3d_the_data_topology_is_held_within_a_wider_band_after_the_tolerance():
+    # The cow: degree 8 (F 0.965) has its legs cut off, and no degree within 0.01 has one
+    # surface; degree 6 repaired to one surface (0.934) is within TOPOLOGY_BAND[3] of it.
+    assert TOPOLOGY_BAND[2] == TOLERANCE < TOPOLOGY_BAND[3]
+    path = [_solid_entry(4, 0.80, 1), _solid_entry(6, 0.95, 3), _solid_entry(8, 0.965, 5)]
+    joined = _solid_entry(6, 0.934, 1)
+    chosen, asked = _settle(CAPTURE, path, {1: joined})
+    # the tolerance's degree first (the loop's variant is memoised: asked again, not repaired
+    # again), then the band's by F-score; degree 4 is below the band
+    assert chosen is joined and asked[0] == 2 and asked[-1] == 1 and 0 not in asked
+    results, index, _ = CAPTURE.settle(path, 0.01, "max_degree", lambda i: (path[i], {1: joined}.get(i)))
+    message = CAPTURE.explain(results, index, "max_degree", 0.01)
+    assert message.startswith("degree 6: the clean degree with the data's topology of the highest F-score (0.934), "
+                              f"within {TOPOLOGY_BAND[3]:g} of the best clean F-score (0.965)")
+    assert "0.031 above degree 6's" in CAPTURE.reason(results, 2, index, message, 0.01)
+    # while the loop decides whether to fit one degree beyond its stop, the band waits
+    assert CAPTURE.settle(path, 0.01, "no_f_gain", lambda i: (path[i], {1: joined}.get(i)), final=False)[1] == 2
+    # the highest F-score of the data's topology within the band, not the lowest degree
+    higher = _solid_entry(6, 0.945, 1)
+    assert _settle(CAPTURE, path + [_solid_entry(10, 0.94, 1)], {1: higher})[0] is higher
+    # below the band, or not repaired to the data's topology: the choice stays
+    assert _settle(CAPTURE, path, {1: _solid_entry(6, 0.965 - TOPOLOGY_BAND[3] - 0.001, 1)})[0] is path[2]
+    assert _settle(CAPTURE, path)[0] is path[2]
+    # the strict rule never asks (it holds the topology in its loop), nor does a 2D path go beyond the tolerance
+    assert _settle(TOPOLOGY, path)[1] == []
+    flat = [_topo_entry(6, 0.95, 1), _topo_entry(8, 0.965, 3)]
+    assert _settle(CAPTURE, flat, {0: _topo_entry(6, 0.96, 1)})[0] is flat[1]
 
 
 # --- the surface a thin part's zero set misses (issue 32: degree.repair.fill_missing) ---------------

@@ -828,7 +828,7 @@ def _settled_on_wrong_topology(results: list[DegreeResult], rule: DegreeRule, ep
                                variant) -> list[DegreeResult] | None:
     """``results`` as ``rule`` settles them when it settles on a clean degree of another topology
     than the data's (known with confidence), else None."""
-    settled, index, _ = rule.settle(results, epsilon, stop, variant)
+    settled, index, _ = rule.settle(results, epsilon, stop, variant, final=False)
     wrong = rule.is_clean(settled[index].quality) and topology_differs(settled[index].quality)
     return settled if wrong else None
 
