@@ -16,7 +16,8 @@ with seed 0:
   topology than the data's, the lowest degree of the data's topology within the rule's
   tolerance of the best clean F-score, as fitted or repaired to it, at no cost in F-score; when
   there is none and the rule stopped below its last degree, one degree more, repaired for it
-  (set aside when it has another topology too);
+  (set aside when it has another topology too); when there is still none, in 3D the degree of
+  the data's topology with the highest F-score within ``TOPOLOGY_BAND[3]`` (0.04) of the best;
 * **strict**: the ``"topology"`` rule (``ipfit fit --rule topology``): the topology held at any cost.
 
 The runs are the same fit until a degree (or a repair round) has another topology than the
@@ -212,7 +213,7 @@ def _notes(rows: list[dict]) -> list[str]:
         shapes = "1 shape" if len(wrong_default) == 1 else f"{len(wrong_default)} shapes"
         out.append(f"- The default keeps another topology than the data's on {shapes} where "
                    "no degree of the data's topology (as fitted or repaired) comes within the rule's tolerance "
-                   "of the best clean F-score (the strict rule's F there): "
+                   "(in 3D its wider topology band) of the best clean F-score (the strict rule's F there): "
                    + ", ".join(f"{r['shape']} ({r['default']['f_score']:.3f}; {r['after']['f_score']:.3f})"
                                for r in wrong_default) + ".")
     total = {key: sum(r[key]["seconds"] for r in rows) for key, _ in RUNS}
@@ -247,7 +248,9 @@ def markdown(rows: list[dict], every: int, command: str, source: str | None = No
            "has another topology than the data's, the lowest degree of the data's topology within the rule's "
            "tolerance, 0.01, of the best clean F-score, as fitted or repaired to it, is selected instead; when "
            "there is none and the rule stopped below its last degree, one degree more is fitted and repaired for "
-           "it, and set aside when it has another topology too; otherwise the choice stays) and **strict** "
+           "it, and set aside when it has another topology too; when there is still none, in 3D the degree of the "
+           "data's topology with the highest F-score within 0.04 of the best clean one, "
+           "`ipfit.degree.rules.TOPOLOGY_BAND`; otherwise the choice stays) and **strict** "
            "(`ipfit fit --rule topology`: a degree of another topology is not clean, at any cost in F-score). "
            "The repair holds the places of a wrong topology: "
            "the neck of a part cut off inside, a loop or bridge in a gap outside. *Correct*: the "
