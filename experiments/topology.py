@@ -194,12 +194,12 @@ def _notes(rows: list[dict]) -> list[str]:
     external = [r for r in rows if r["group"] == "external"]
     if external:
         known = [r for r in external if r["confidence"] == "high"]
+        wrong = "; ".join(f"{r['shape']}: {r['data']} in the data, {r['default']['topology']} selected "
+                          f"(F {r['default']['f_score']:.3f})" for r in known if r["default"]["matches"] is False)
         out.append(f"- External meshes: {len(known)} of {len(external)} are closed with parts that do not pass "
                    "through each other (known with confidence); by default the selected surface has the mesh's "
-                   f"components and genus on {sum(r['default']['matches'] is True for r in known)} of them. "
-                   + "".join(f"{r['shape']}: {r['data']} in the data, {r['default']['topology']} selected "
-                             f"(F {r['default']['f_score']:.3f}); " for r in known
-                             if r["default"]["matches"] is False).rstrip("; ") + ".")
+                   f"components and genus on {sum(r['default']['matches'] is True for r in known)} of them."
+                   + (f" {wrong}." if wrong else ""))
     if any(r["group"] == "turk-dev" for r in rows):
         out.append(f"- Turk meshes: {len(closed)} of 12 are closed with parts that do not pass through each other "
                    "(known with confidence); the others are open (their holes capped, an estimate) or made of parts "
@@ -218,8 +218,8 @@ def _notes(rows: list[dict]) -> list[str]:
                                for r in wrong_default) + ".")
     total = {key: sum(r[key]["seconds"] for r in rows) for key, _ in RUNS}
     out.append(f"- Time over all {len(rows)} shapes: default {total['default'] / total['before']:.2f}×, strict "
-               f"{total['after'] / total['before']:.2f}× the time before ({total['before']:.0f} s); a repair that "
-               "fails costs most: " + ", ".join(
+               f"{total['after'] / total['before']:.2f}× the time before ({total['before']:.0f} s); the repairs "
+               "cost most: " + ", ".join(
                    f"{r['shape']} {r['before']['seconds']:.0f} → {r['default']['seconds']:.0f} s" for r in sorted(
                        rows, key=lambda r: r["before"]["seconds"] - r["default"]["seconds"])[:3]) + " by default.")
     for key, label in RUNS[1:]:
