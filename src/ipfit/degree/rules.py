@@ -340,7 +340,8 @@ class DegreeRule(ABC):
         clean, and the repair tries to fix it (:func:`topology_differs`).
     prefers_topology : bool
         Whether, when the choice has another topology than the data's, :meth:`settle` looks for
-        a degree of the data's topology at no cost in F-score, repairing degrees to it (as
+        a degree of the data's topology within its tolerance of the best F-score (in 3D, failing
+        that, within its :attr:`~CaptureRule.topology_band`), repairing degrees to it (as
         :data:`TOPOLOGY` does) where needed (see :class:`CaptureRule`).
     max_degrees : Mapping[int, int]
         The last degree tried when the caller gives none, per dimension (:meth:`max_degree`).
