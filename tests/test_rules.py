@@ -59,7 +59,10 @@ def test_a_clean_degree_that_misses_the_data_is_no_fit():
     index, reason = CAPTURE.select(entries, 0.01, "max_degree")
     assert index == 2
     message = CAPTURE.explain(entries, index, reason, 0.01)
-    assert message.startswith("degree 6: the clean degrees miss the data (best clean F-score 0.450, below 0.5)")
+    assert message.startswith("degree 6: the clean degrees miss the data (best clean F-score 0.450, below 0.5), so "
+                              "the lowest degree within 0.01 of the best F-score was taken (0.890: 1 spurious "
+                              "component (largest 5.0% of the zero set, at (1, 0), 0.4 from the data); not closed "
+                              "inside the box)")
     assert CAPTURE.reason(entries, 0, index, message, 0.01).startswith(
         "clean, but misses the data: F-score 0.450 is below 0.5")
     assert not CAPTURE.success(entries, index)

@@ -619,7 +619,8 @@ class CaptureRule(DegreeRule):
             none = "no degree tried is clean" if not any(self.is_clean(r.quality) for r in results) else \
                 f"the clean degrees miss the data (best clean F-score {clean_f:.3f}, below {MISSES_BELOW:g})"
             return (f"degree {chosen.degree}: {none}, so the lowest degree within {TOLERANCE:g} "
-                    f"of the best F-score was taken ({chosen.quality.f_score:.3f}); the loop stopped: {stop}")
+                    f"of the best F-score was taken ({chosen.quality.f_score:.3f}: "
+                    f"{describe_unclean(chosen.quality) or 'an empty zero set'}); the loop stopped: {stop}")
         right = not topology_differs(chosen.quality)
         lower_wrong = any(self.is_clean(r.quality) and topology_differs(r.quality) and r.degree < chosen.degree
                           and r.quality.f_score >= chosen.quality.f_score - TOLERANCE for r in results)
