@@ -398,8 +398,13 @@ def test_the_default_gives_the_horse_one_loop_at_no_cost_in_f_score(seed):
         assert rounds and all(a["f_score"] < best - TOLERANCE for a in rounds if a["topology_matches"])
     else:
         assert chosen.topology.loops == 1
-    # the same path of degrees: the preference only chooses, and repairs, after the loop
-    assert [d.degree for d in result.degrees] == [d.degree for d in blind.degrees]
+    # the same path of degrees: the preference only chooses, and repairs, after the loop, save one
+    # degree beyond the rule's stop when no degree within the tolerance had one loop (the Haswell
+    # kernel, seeds 1-2: degree 16 after the stop at 14), which the message names
+    path, blind_path = [d.degree for d in result.degrees], [d.degree for d in blind.degrees]
+    assert path[:len(blind_path)] == blind_path and len(path) <= len(blind_path) + 1
+    if len(path) > len(blind_path):
+        assert f"degree {path[-1]} was tried after the rule had stopped at degree {blind_path[-1]}" in result.message
     if blind.at_degree(blind.selected_degree).quality.topology_matches is False:
         repaired = result.at_degree(result.selected_degree)
         if chosen.topology_matches and repaired.degree == blind.selected_degree:
