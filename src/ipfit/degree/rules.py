@@ -572,38 +572,42 @@ class CaptureRule(DegreeRule):
         # for the degrees of the band, lowest first: each costs a few polishes).
         best = max(r.quality.f_score for r in results if self.is_clean(r.quality))
         for i in sorted(range(len(results)), key=lambda i: results[i].degree):
-            entry = results[i]
-            if not self.is_clean(entry.quality) or entry.quality.f_score < best - TOLERANCE:
-                continue
-            if not topology_differs(entry.quality):
+            candidate = self._of_data_topology(results, i, variant, best - TOLERANCE)
+            if candidate is not None:
+                results[i] = candidate
                 return results, i, reason
-            results[i], repaired = variant(i)
-            if repaired is not None and self.is_clean(repaired.quality) and \
-                    repaired.quality.f_score >= best - TOLERANCE:
-                results[i] = repaired
-                return results, i, reason
-        band = self.topology_band.get(chosen.quality.data_topology.dim, TOLERANCE)  # type: ignore[union-attr]
+        band = self._band(chosen.quality)
         if not final or band <= TOLERANCE:
             return results, index, reason
         # None within the tolerance, not even one degree beyond the stop: the data's topology with
         # the highest F-score within the wider band, as fitted or repaired to it.
-        found: tuple[float, int, DegreeResult] | None = None
-        for i in sorted(range(len(results)), key=lambda i: -results[i].quality.f_score):
-            entry = results[i]
-            if not self.is_clean(entry.quality) or entry.quality.f_score < best - band:
-                continue
-            candidate: DegreeResult | None = entry
-            if topology_differs(entry.quality):
-                results[i], candidate = variant(i)
-            if candidate is None or not self.is_clean(candidate.quality) or topology_differs(candidate.quality):
-                continue
-            f = candidate.quality.f_score
-            if f >= best - band and (found is None or f > found[0]):
-                found = f, i, candidate
-        if found is None:
+        by_f = sorted(range(len(results)), key=lambda i: -results[i].quality.f_score)
+        found = [(_measured(c).f_score, i, c) for i in by_f
+                 if (c := self._of_data_topology(results, i, variant, best - band)) is not None]
+        if not found:
             return results, index, reason
-        results[found[1]] = found[2]
-        return results, found[1], reason
+        _, i, candidate = max(found, key=lambda item: item[0])
+        results[i] = candidate
+        return results, i, reason
+
+    def _of_data_topology(self, results, i: int, variant, floor: float) -> DegreeResult | None:
+        """Degree ``i`` (clean, F-score at least ``floor``) as fitted when it has the data's
+        topology, else repaired to it by ``variant`` (``results[i]`` then records the rounds) when
+        that is clean and still at least ``floor``; None otherwise."""
+        entry = results[i]
+        if not self.is_clean(entry.quality) or entry.quality.f_score < floor:
+            return None
+        if not topology_differs(entry.quality):
+            return entry
+        results[i], repaired = variant(i)
+        if repaired is None or not self.is_clean(repaired.quality) or topology_differs(repaired.quality) or \
+                repaired.quality.f_score < floor:
+            return None
+        return repaired
+
+    def _band(self, quality: Quality) -> float:
+        """How far below the best clean F-score the data's topology (known: ``quality``'s) is held."""
+        return self.topology_band.get(quality.data_topology.dim, TOLERANCE)  # type: ignore[union-attr]
 
     def explain(self, results, index, reason, epsilon):
         chosen = results[index]
@@ -631,9 +635,9 @@ class CaptureRule(DegreeRule):
             a.get("topology_matches") is False for a in chosen.cleanup) else ""
         best = self.best_clean_f(results)
         if right and known and chosen.quality.f_score < best - TOLERANCE:  # the wider band's choice (settle)
-            band = self.topology_band.get(chosen.quality.data_topology.dim, TOLERANCE)  # type: ignore[union-attr]
             return (f"degree {chosen.degree}{repaired}: the clean degree with the data's topology of the highest "
-                    f"F-score ({chosen.quality.f_score:.3f}), within {band:g} of the best clean F-score ({best:.3f}), "
+                    f"F-score ({chosen.quality.f_score:.3f}), within {self._band(chosen.quality):g} of the best clean "
+                    f"F-score ({best:.3f}), "
                     f"none within {TOLERANCE:g} of it having the data's topology; the loop stopped: {stop}")
         which = "clean degree with the data's topology" if lower_wrong and right else "clean degree"
         return (f"degree {chosen.degree}{repaired}: the lowest {which} within {TOLERANCE:g} of the best clean "
