@@ -165,3 +165,37 @@ def test_datasets_command(capsys):
     for name in ("bunny", "bunny_res4", "apple", "duck", "boot", "airplane", "butterfly"):
         assert f"\n{name} " in "\n" + text
     assert "Stanford 3D Scanning Repository" in text and "CREDITS.md" in text and "file:" in text
+
+
+def test_a_known_noise_grows_the_neighbourhoods(tmp_path, rng, capsys):
+    # A thin torus (tube radius 0.1) under noise of σ = 1 % of its box diagonal: the 12 nearest
+    # points fit the noise; with --noise (a number, or the outlier score's estimate) the
+    # neighbourhoods are grown to about 4 σ (tests/test_normals.py has the measured angles).
+    from ipfit.datasets.synthetic import torus
+    from ipfit.normals import normal_agreement
+
+    points, truth, _ = torus(3000, 1.0, 0.1, rng=rng)
+    sigma = 0.01 * float(np.linalg.norm(np.ptp(points, axis=0)))
+    src = io.write_points(tmp_path / "t.xyz", points + rng.normal(0.0, sigma, points.shape))
+    angles = {}
+    for setting in (None, f"{sigma:.6g}", "auto"):
+        out = tmp_path / f"{setting}.ply"
+        assert main(["normals", str(src), "-o", str(out), *(["--noise", setting] if setting else [])]) == 0
+        text = capsys.readouterr().out
+        assert ("(the outlier score's estimate)" in text) == (setting == "auto")
+        angles[setting] = normal_agreement(io.read_points(out).normals, truth).median_angle
+    assert angles[None] > 24 and angles[f"{sigma:.6g}"] < 19 and angles["auto"] < 19
+    # copied normals are not estimated: the option is said to be unused
+    assert main(["normals", str(DATA / "apple.ply"), "-o", str(tmp_path / "a.ply"), "--noise", "auto"]) == 0
+    assert "--noise was not used" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("value", ["-1", "lots", "nan"])
+def test_a_bad_noise_exits_2_with_one_line(tmp_path, capsys, value):
+    try:
+        code = main(["normals", "apple", "-o", str(tmp_path / "o.ply"), "--noise", value])
+    except SystemExit as stop:  # argparse's own usage error
+        code = stop.code
+    err = capsys.readouterr().err
+    assert code == 2 and "--noise" in err and "auto or a number >= 0" in err and "Traceback" not in err
+    assert not (tmp_path / "o.ply").exists()

@@ -11,6 +11,7 @@ from ipfit.geometry.mesh import outward_vertices
 from ipfit.normals import DEFAULT_K, contour_normals, estimate_normals, normal_agreement, orient_normals
 from ipfit.normals.local import pca_normals
 from ipfit.normals.scale import noise_scale
+from ipfit.robust import score_outliers
 
 
 def face_normals(name):
@@ -325,6 +326,51 @@ def test_noisy_synthetic_surfaces(make, fraction, rng):
     assert agreement.median_angle < 10
 
 
+@pytest.mark.parametrize("make, median", [
+    (lambda rng: synthetic.ellipsoid(3000, (1.0, 0.2, 0.1), rng=rng), 14),
+    (lambda rng: synthetic.torus(3000, 1.0, 0.1, rng=rng), 19),
+], ids=["flat ellipsoid", "thin torus"])
+def test_a_known_noise_grows_the_neighbourhoods_no_size_flattens(make, median, rng):
+    """σ = 1 % of the diagonal on shapes that curve within a few σ: no neighbourhood size looks
+    flatter, and the k nearest points (about 2 σ wide) fit the noise. Measured (seeds 0-5): plain
+    26-30° median, 14-25 % flipped; with the noise's σ, true or the outlier score's, 11° and 16-17°,
+    under 1.6 % flipped."""
+    points, truth, _ = make(rng)
+    noisy, sigma = add_noise(points, 0.01, rng)
+    plain = normal_agreement(estimate_normals(noisy), truth)
+    assert plain.median_angle > 24 and plain.flipped_fraction > 0.1  # what the noise does without σ
+    events = []
+    for noise in (sigma, score_outliers(noisy).noise_scale):
+        known = normal_agreement(estimate_normals(noisy, noise=noise, progress=events.append), truth)
+        assert known.median_angle < median
+        assert known.flipped_fraction < 0.03
+    assert sum("grown to 4 σ of the noise" in e["message"] for e in events) == 2
+
+
+def test_a_known_noise_changes_nothing_where_a_size_flattens_or_the_points_are_clean(rng):
+    """The noisy sphere flattens at a wider size, the clean torus is not noisy, a contour is 2D:
+    ``noise`` is not used (the same computation, so the same normals)."""
+    sphere, _, _ = synthetic.sphere(3000, rng=rng)
+    noisy, sigma = add_noise(sphere, 0.01, rng)
+    torus, _, _ = synthetic.torus(3000, 1.0, 0.1, rng=rng)
+    boot, _ = add_noise(bundled.load_dataset("boot")[0], 0.01, rng)
+    for points, noise in ((noisy, sigma), (torus, 0.05), (boot, 10.0)):
+        np.testing.assert_allclose(estimate_normals(points, noise=noise), estimate_normals(points), atol=1e-12)
+
+
+def test_a_known_noise_is_in_the_points_units(rng):
+    points, truth, _ = synthetic.torus(3000, 1.0, 0.1, rng=rng)
+    noisy, sigma = add_noise(points, 0.01, rng)
+    agreement = np.einsum("ij,ij->i", estimate_normals(noisy * 1e3 + 5.0, noise=sigma * 1e3),
+                          estimate_normals(noisy, noise=sigma))
+    # the same lines; the signs of the few points that the two sides of the thin tube vote on
+    # almost equally (1-9 of 3,000 over seeds 0-5) may follow the rounding
+    np.testing.assert_allclose(np.abs(agreement), 1.0, atol=1e-9)
+    assert np.mean(agreement < 0) < 0.01
+    # σ ten times too small: the k nearest already reach 3 σ, nothing is grown
+    np.testing.assert_allclose(estimate_normals(noisy, noise=sigma / 10), estimate_normals(noisy), atol=1e-12)
+
+
 @pytest.mark.parametrize("fraction, flipped", [(0.005, 0.025), (0.01, 0.05)])
 def test_noisy_bunny_res2(fraction, flipped, rng):
     """Noise of 1.25 and 2.5 mm; the ears are a few mm thick.
@@ -463,6 +509,8 @@ def test_a_far_outlier_gives_finite_unit_normals(rng):
     ({"workers": 1.5}, ["workers", "an integer"]),
     ({"orient": "yes"}, ["orient", "True or False"]),
     ({"k": 0}, ["k", ">= 3"]),
+    ({"noise": -1.0}, ["noise", "got -1.0"]),
+    ({"noise": float("nan")}, ["noise", "a finite real number", "nan"]),
 ])
 def test_bad_arguments_get_one_message(kwargs, words):
     points = np.random.default_rng(0).random((30, 3))

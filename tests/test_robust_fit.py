@@ -120,6 +120,10 @@ def test_the_kept_weighting_is_the_one_that_measures_better():
 
     assert better(exact, shifted) and not better(shifted, exact)
     assert not better(exact, exact)  # a tie keeps the first fit
+    # with a margin, only a gain beyond it
+    gain = q["exact"].f_score - q["shifted"].f_score
+    assert _measures_better(loop(exact), loop(shifted), points, CAPTURE, 0.9 * gain)
+    assert not _measures_better(loop(exact), loop(shifted), points, CAPTURE, 1.1 * gain)
     assert better(exact, spurious)
     # a spurious loop never replaces a clean fit, even one of a lower F-score
     assert q["spurious"].f_score > q["shifted"].f_score

@@ -7,7 +7,7 @@ import sys
 import time
 from pathlib import Path
 
-from ._common import Outputs, positive_int
+from ._common import Outputs, nonnegative_float, positive_int
 from ._progress import Progress, progress_mode
 
 NAME = "normals"
@@ -24,7 +24,10 @@ k-nearest-neighbour PCA with consistent outward orientation; where the file has 
 command reports how many estimated normals point the opposite way to the file's and how many differ
 from them by more than 30°. For meshes, --outward first checks which of those reference normals
 point out of the mesh's solid (generalized winding numbers; a mesh that passes through itself, or
-has holes, has some that do not) and reports the disagreement over the others too.
+has holes, has some that do not) and reports the disagreement over the others too. --noise gives
+the estimate the noise's σ (a number in the points' units, or auto: the outlier score's estimate, as
+`ipfit fit` finds it): noisy 3D points then get neighbourhoods about 4 σ wide where no size looks
+flatter (noise about as wide as the shape's bends).
 """
 
 _OFF_LINE = 30.0  # degrees: report estimated normals whose line differs more than this
@@ -39,10 +42,23 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "(default: the file's when present), as in `ipfit fit`")
     parser.add_argument("--k", type=positive_int, metavar="K",
                         help="neighbours per point for the estimate (default 6 in 2D, 12 in 3D)")
+    parser.add_argument("--noise", type=noise_setting, metavar="auto|SIGMA",
+                        help="the noise's σ for the estimate, in the points' units, or auto: the outlier score's "
+                             "estimate (default: none, the sizes from the points alone)")
     parser.add_argument("--outward", action="store_true",
                         help="with --normals estimate on a mesh: also compare only where the reference normals "
                              "point out of the solid (winding numbers: seconds per 10,000 vertices × 10,000 faces)")
     parser.add_argument("--ascii", action="store_true", help="write an ASCII PLY instead of a binary one")
+
+
+def noise_setting(text: str) -> str | float:
+    """--noise: 'auto' or σ >= 0, checked by the library's rule."""
+    if text == "auto":
+        return text
+    try:
+        return nonnegative_float(text)
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(f"expected auto or a number >= 0 (the noise's σ), got {text!r}") from None
 
 
 # How the normals' origin (Cloud.normals_source) is named in the report.
@@ -79,15 +95,23 @@ def run(args: argparse.Namespace) -> int:
     if estimate or reference is None:
         k = args.k if args.k is not None else DEFAULT_K[dim]
         start = time.perf_counter()
-        normals = estimate_normals(points, k=k, progress=Progress(progress_mode(False), stream=sys.stdout))
+        noise = args.noise
+        if noise == "auto":
+            from ..robust import score_outliers
+
+            noise = score_outliers(points).noise_scale
+            print(f"noise σ = {noise:.4g} (the outlier score's estimate)")
+        normals = estimate_normals(points, k=k, noise=noise, progress=Progress(progress_mode(False), stream=sys.stdout))
         seconds = time.perf_counter() - start
         why = "" if estimate else " (the input has none)"
         print(f"estimated normals{why} from the {k} nearest points of each point (k = {k}) in {seconds:.2f} s")
         if reference is not None:
             _report_agreement(normal_agreement(normals, reference), source)
-    elif args.k is not None:
-        print("note: --k was not used: it sets the estimate's neighbourhood, and the file's normals were copied "
-              "(add --normals estimate to estimate them)")
+    elif args.k is not None or args.noise is not None:
+        unused = [name for name, value in (("--k", args.k), ("--noise", args.noise)) if value is not None]
+        said = "was not used: it sets" if len(unused) == 1 else "were not used: they set"
+        print(f"note: {' and '.join(unused)} {said} the estimate's neighbourhood, and the file's normals were "
+              "copied (add --normals estimate to estimate them)")
     if args.outward:
         if estimate and reference is not None and faces is not None and dim == 3:
             _report_outward(points, faces, reference, normals, source)

@@ -15,7 +15,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
 from .._utils.numeric import row_norms, unit_rows_mask
-from .._utils.validation import as_points, check_int, error
+from .._utils.validation import as_points, check_int, check_nonnegative, error
 from .local import (
     blocks,
     check_flag,
@@ -32,7 +32,7 @@ from .local import (
 )
 from .orient import orient_graph
 from .poles import doubtful_points, is_uneven, pole_lines
-from .scale import noise_scale, orient_coarse, roughness
+from .scale import SIGMAS_WIDE, noise_scale, orient_coarse, roughness
 
 __all__ = ["estimate_normals", "contour_normals", "looks_noisy"]
 
@@ -155,7 +155,7 @@ def _refit_along_curve(points: NDArray, idx: NDArray[np.intp], normals: NDArray,
 
 
 def estimate_normals(points: ArrayLike, k: int | None = None, *, orient: bool = True,
-                     workers: int = -1, inliers: ArrayLike | None = None,
+                     workers: int = -1, inliers: ArrayLike | None = None, noise: float | None = None,
                      return_confidence: bool = False, progress: Callable[[dict], None] | None = None):
     """Unit normals of a 2D or 3D point cloud by k-nearest-neighbour PCA.
 
@@ -181,7 +181,9 @@ def estimate_normals(points: ArrayLike, k: int | None = None, *, orient: bool = 
     points; in 3D at most 8 % of the cloud's box diagonal wide, beyond which a neighbourhood
     sees the object's overall shape rather than averaged noise; see :func:`noise_scale`), and
     the signs are propagated on a denoised, coarser sample of the shape, from which each point
-    takes its own (see :func:`orient_coarse`).
+    takes its own (see :func:`orient_coarse`). Where no size looks flatter (noise about as wide as
+    the shape's bends: σ = 1 % of the diagonal on a mesh of a few thousand vertices) and the
+    noise's σ is known (``noise``), every neighbourhood is grown to a radius of about 4 σ.
     Parts thinner than a few times the noise (a butterfly's antennae under noise wider than
     they are) cannot be told apart and come out with one side flipped. A noisy cloud of more
     than 40,000 points is estimated on an even sample of 40,000 of them, and each point takes
@@ -206,6 +208,11 @@ def estimate_normals(points: ArrayLike, k: int | None = None, *, orient: bool = 
         The normals are estimated and oriented on those alone, so that a stray point can neither
         tilt nor flip a neighbourhood; every other point takes the normal of its nearest inlier.
         At least 3 inliers. None (the default): every point is one.
+    noise : float, optional
+        The Gaussian σ of the points' offsets from the shape, in their units, if known (e.g.
+        ``ipfit.robust.score_outliers(points).noise_scale``, which :func:`ipfit.fit_adaptive`
+        passes): noisy points get neighbourhoods at least about 4 σ wide (see above). It is
+        used only where the points look noisy; None: sizes from the points alone.
     return_confidence : bool
         Also return how well each point's neighbourhood supports its normal line (see below).
     progress : callable, optional
@@ -241,15 +248,19 @@ def estimate_normals(points: ArrayLike, k: int | None = None, *, orient: bool = 
     """
     pts = as_points(points, min_points=3)
     return_confidence = check_flag(return_confidence, "return_confidence")
+    if noise is not None:
+        noise = check_nonnegative(noise, "noise")
     if progress is not None and not callable(progress):
         raise error("progress", "a callable taking one event dict, or None", type(progress).__name__)
     if inliers is not None:
         mask = _check_inliers(inliers, len(pts))
         if not mask.all():
-            return _normals_of_inliers(pts, mask, k, orient, workers, return_confidence, progress)
+            return _normals_of_inliers(pts, mask, k, orient, workers, noise, return_confidence, progress)
     orient = check_flag(orient, "orient")
     workers = check_workers(workers)
+    given = pts
     pts = standardise(pts)
+    sigma = None if noise is None else _standard_sigma(given, pts, noise)
     if k is not None:
         default_k(k, pts.shape[1], len(pts))  # checked on the caller's points
     # Coincident points (a mesh's vertices split per face) add nothing but fill the k nearest:
@@ -262,10 +273,10 @@ def estimate_normals(points: ArrayLike, k: int | None = None, *, orient: bool = 
 
     distinct, inverse = _distinct(pts)
     if len(distinct) < len(pts) and len(distinct) > pts.shape[1]:
-        normals, confidence = _estimate(distinct, k, orient, workers, return_confidence, say)
+        normals, confidence = _estimate(distinct, k, orient, workers, return_confidence, say, sigma)
         normals, confidence = normals[inverse], confidence[inverse]
     else:
-        normals, confidence = _estimate(pts, k, orient, workers, return_confidence, say)
+        normals, confidence = _estimate(pts, k, orient, workers, return_confidence, say, sigma)
     say("done")
     return (normals, confidence) if return_confidence else normals
 
@@ -282,8 +293,15 @@ def _distinct(points: NDArray) -> tuple[NDArray, NDArray[np.intp]]:
     return points[order][np.concatenate([[True], ~repeat])], inverse
 
 
-def _estimate(pts: NDArray, k, orient: bool, workers: int, want_confidence: bool,
-              say: Callable[[str], None]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+def _standard_sigma(points: NDArray, standard: NDArray, noise: float) -> float | None:
+    """``noise`` (in the units of ``points``) in those of their :func:`standardise` copy ``standard``."""
+    axis = int(np.argmax(np.ptp(standard, axis=0)))
+    span = float(np.ptp(points[:, axis]))
+    return noise * float(np.ptp(standard[:, axis])) / span if 0 < span < np.inf else None
+
+
+def _estimate(pts: NDArray, k, orient: bool, workers: int, want_confidence: bool, say: Callable[[str], None],
+              sigma: float | None = None) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Normals and (if wanted, else NaN) their confidence on standardised points (see estimate_normals)."""
     k = default_k(k, pts.shape[1], len(pts))
     tree = cKDTree(pts)
@@ -293,7 +311,7 @@ def _estimate(pts: NDArray, k, orient: bool, workers: int, want_confidence: bool
         if _probe_is_rough(pts, tree, k, workers):
             sample = spread(pts, _NOISY_SAMPLE)
             say(f"noisy: estimating on an even sample of {len(sample):,} of the {len(pts):,} points")
-            normals, confidence = _estimate(pts[sample], k, orient, workers, want_confidence, say)
+            normals, confidence = _estimate(pts[sample], k, orient, workers, want_confidence, say, sigma)
             say(f"giving each of the {len(pts):,} points its nearest sample point's normal")
             _, nearest = cKDTree(pts[sample]).query(pts, workers=workers)
             return normals[nearest], confidence[nearest]
@@ -301,11 +319,12 @@ def _estimate(pts: NDArray, k, orient: bool, workers: int, want_confidence: bool
     normals, values = pca(pts, idx)
     flatness = flatness_of(values)
     say(f"{len(pts):,} neighbourhoods of {k} points fitted")
-    scaled = noise_scale(pts, tree, idx, flatness, workers)
+    scaled = noise_scale(pts, tree, idx, flatness, workers, sigma)
     if scaled is not None:
         # Noise-dominated: the normals of wider neighbourhoods, oriented on a denoised,
         # coarser sample of the shape (see orient_coarse).
-        say("noisy: neighbourhoods grown past the noise")
+        say(f"noisy: neighbourhoods grown to {SIGMAS_WIDE:g} σ of the noise" if scaled.by_sigma else
+            "noisy: neighbourhoods grown past the noise")
         out = orient_coarse(pts, tree, scaled, workers) if orient else scaled.normals
         return out, scaled.confidence
     links: tuple[NDArray[np.intp], NDArray[np.intp]] | None = None
@@ -362,12 +381,12 @@ def _check_inliers(inliers: ArrayLike, n: int) -> NDArray[np.bool_]:
     return mask
 
 
-def _normals_of_inliers(points: NDArray, mask: NDArray[np.bool_], k, orient, workers, return_confidence,
+def _normals_of_inliers(points: NDArray, mask: NDArray[np.bool_], k, orient, workers, noise, return_confidence,
                         progress):
     """Normals estimated on the inliers alone; each other point takes its nearest inlier's (confidence 0)."""
     normals = np.empty(points.shape)
     confidence = np.zeros(len(points))
-    normals[mask], confidence[mask] = estimate_normals(points[mask], k, orient=orient, workers=workers,
+    normals[mask], confidence[mask] = estimate_normals(points[mask], k, orient=orient, workers=workers, noise=noise,
                                                        return_confidence=True, progress=progress)
     std = standardise(points)  # a far stray's squared distance must not overflow
     _, nearest = cKDTree(std[mask]).query(std[~mask], workers=check_workers(workers))

@@ -50,6 +50,18 @@ _GAIN = 0.75
 # estimate gives 0.88-0.98 there (docs/robust.md). The bundled bunny and duck at σ = 1 % flatten
 # at 4-5 % (k = 192-384 of 35,000 points), well inside.
 _LOCAL_REACH = 0.08
+# Noise of known σ (the outlier score's estimate) that no neighbourhood size flattens: σ = 1 % of
+# the diagonal on meshes of 3,000-10,000 vertices (homer, the rocker arm, cheburashka, fandisk),
+# where the shape curves within the few σ a neighbourhood must span. The k nearest points then
+# reach about 2 σ and fit the noise (normals 24-32° off, a quarter to a third of the signs wrong:
+# homer's fit F 0.94); the neighbourhoods are grown to the first size whose median radius is
+# SIGMAS_WIDE σ (normals 11-15° off, under 5 % of the signs wrong; homer's fit F 0.99). Local sizes
+# only, as above. Parts thinner than that come out inside out as wholes (the cow's legs), which
+# fit_adaptive answers with a look at the plain normals when the fit is poor.
+SIGMAS_WIDE = 4.0
+# ... when the k nearest reach less than this many σ. At σ = 0.5 % they reach 3.5-4 σ, and growing
+# them to 4 σ cost the cow, homer and cheburashka up to 0.01 of F.
+SIGMAS_ENOUGH = 3.0
 
 
 # Each noisy point takes its sign from the _VOTERS representatives nearest to it, weighted by
@@ -67,6 +79,7 @@ class _Scaled(NamedTuple):
     centroid: NDArray[np.float64]  # of each point's chosen neighbourhood
     radius: float  # median radius of the chosen neighbourhoods
     confidence: NDArray[np.float64]  # 1 - λ₁/λ₂ of the chosen neighbourhood (local.normal_confidence)
+    by_sigma: bool = False  # every neighbourhood grown to SIGMAS_WIDE σ of a known noise (none looked flatter)
 
 
 def roughness(points: NDArray, idx: NDArray[np.intp], flatness: NDArray) -> float | None:
@@ -86,7 +99,7 @@ def roughness(points: NDArray, idx: NDArray[np.intp], flatness: NDArray) -> floa
 
 
 def noise_scale(points: NDArray, tree: cKDTree, idx: NDArray[np.intp], flatness: NDArray,
-                workers: int) -> _Scaled | None:
+                workers: int, sigma: float | None = None) -> _Scaled | None:
     """Normals on neighbourhoods grown to see past the noise, or None if the data are not noisy.
 
     Each point gets the scale (k doubled 1 to 5 times) at which the surface variation, averaged
@@ -94,6 +107,9 @@ def noise_scale(points: NDArray, tree: cKDTree, idx: NDArray[np.intp], flatness:
     wide neighbourhood that averages the noise; near thin parts and tight bends, where wide
     neighbourhoods take in the other side or the bend, a narrower one. In 3D only local
     neighbourhoods count (at most ``_LOCAL_REACH`` of the box diagonal wide, see there).
+    In 3D, when no scale is flatter and the noise's ``sigma`` (in the units of ``points``) is
+    known, every point gets the first scale at least ``SIGMAS_WIDE`` σ wide, if the k nearest
+    reach less than ``SIGMAS_ENOUGH`` σ.
     """
     n, k = idx.shape
     dim = points.shape[1]
@@ -141,15 +157,33 @@ def noise_scale(points: NDArray, tree: cKDTree, idx: NDArray[np.intp], flatness:
         if not local.any():
             return None
     medians = np.median(variation, axis=1)
-    if medians[local].min() > _GAIN * max(start, medians[0]):
-        return None
-    smooth = variation[:, idx].mean(axis=2)
-    smooth[~local] = np.inf
-    choice = np.argmin(smooth, axis=0)
     at = np.arange(n)
+    if medians[local].min() > _GAIN * max(start, medians[0]):
+        wide = _wide_enough(points, idx, np.median(reach, axis=1), local, sigma)
+        if wide is None:
+            return None
+        choice, by_sigma = np.full(n, wide), True
+    else:
+        by_sigma = False
+        smooth = variation[:, idx].mean(axis=2)
+        smooth[~local] = np.inf
+        choice = np.argmin(smooth, axis=0)
     normals, flat, centroid = normals[choice, at], flat[choice, at], centroid[choice, at]
     radius = float(np.median(reach[choice, at]))
-    return _Scaled(normals, flat, centroid, radius, np.clip(support[choice, at], 0.0, 1.0))
+    return _Scaled(normals, flat, centroid, radius, np.clip(support[choice, at], 0.0, 1.0), by_sigma)
+
+
+def _wide_enough(points: NDArray, idx: NDArray[np.intp], reach: NDArray, local: NDArray[np.bool_],
+                 sigma: float | None) -> int | None:
+    """The index of the first local scale whose median ``reach`` is ``SIGMAS_WIDE`` σ (else the widest
+    local one), or None when σ is unknown or the k nearest of ``idx`` reach ``SIGMAS_ENOUGH`` σ."""
+    if sigma is None or not sigma > 0 or points.shape[1] != 3:
+        return None
+    wanted = SIGMAS_WIDE * sigma
+    if float(np.median(np.linalg.norm(points[idx[:, -1]] - points, axis=1))) >= SIGMAS_ENOUGH * sigma:
+        return None
+    fits = np.flatnonzero(local & (reach >= wanted))
+    return int(fits[0]) if len(fits) else int(np.flatnonzero(local)[-1])
 
 
 def orient_coarse(points: NDArray, tree: cKDTree, scaled: _Scaled, workers: int) -> NDArray[np.float64]:
@@ -163,7 +197,7 @@ def orient_coarse(points: NDArray, tree: cKDTree, scaled: _Scaled, workers: int)
     :func:`orient_graph` like clean data. Each point then takes the sign that agrees best with the
     oriented representatives nearest to it on its own side (see _OFF_SHEET).
     """
-    normals, flatness, centroid, radius, _ = scaled
+    normals, flatness, centroid, radius = scaled.normals, scaled.flatness, scaled.centroid, scaled.radius
     n, dim = points.shape
     size = radius / _CELL
     fallback = not size > 0

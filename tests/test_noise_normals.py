@@ -1,0 +1,76 @@
+"""Noisy bare 3D clouds: normals grown to the noise that the outlier score found (issue 30).
+
+Where no neighbourhood size looks flatter (noise about as wide as the shape's bends), the k
+nearest points fit the noise; :func:`ipfit.fit_adaptive` passes the outlier score's noise scale
+to :func:`ipfit.estimate_normals`, which grows every neighbourhood to about 4 σ, and fits again
+with the nearest points' normals when that fit misses the shape (a part thinner than the
+neighbourhoods inside out as a whole). The references: a torus whose polynomial is known, thin
+enough (tube radius 0.1) that σ = 1 % of its box diagonal is a third of it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+import ipfit
+from ipfit.datasets import synthetic
+from ipfit.degree import adaptive
+from ipfit.fitting.options import DEFAULT_DELTA, DEFAULT_EPSILON
+
+
+def _noisy_torus(n: int, rng: np.random.Generator):
+    shape = synthetic.torus(n, 1.0, 0.1, rng=rng)
+    sigma = 0.01 * float(np.linalg.norm(np.ptp(shape.points, axis=0)))
+    return shape, shape.points + rng.normal(0.0, sigma, shape.points.shape)
+
+
+def test_a_noisy_cloud_s_normals_are_grown_to_the_noise_the_score_found(seed):
+    rng = np.random.default_rng(seed)
+    shape, points = _noisy_torus(3000, rng)
+    events: list[dict] = []
+    result = ipfit.fit_adaptive(points, max_degree=4, rng=seed, progress=events.append)
+    said = [e["message"] for e in events if e["event"] == "normals"]
+    assert any("grown to 4 σ of the noise" in m for m in said), said
+    assert result.outliers is not None and 0.7 < result.outliers.noise_scale / 0.01 / np.linalg.norm(
+        np.ptp(shape.points, axis=0)) < 1.3  # the σ they were grown to: the noise's
+    q = ipfit.quality(result.polynomial, shape.points)
+    assert q.f_score > 0.95 and q.n_spurious == 0
+    # a look with the nearest points' normals (the fit on the noisy points may score below 0.95)
+    # keeps the grown ones here: the nearest points' have a sixth of their signs wrong
+    looked = [e for e in events if e["event"] == "normals_variant"]
+    assert len(looked) <= 1 and ("normals: grown to the noise" in result.message) == bool(looked)
+    # without the score ('none') the noise is not known: the nearest points' normals
+    events.clear()
+    ipfit.fit_adaptive(points, max_degree=2, outliers="none", rng=seed, progress=events.append)
+    assert not any("σ of the noise" in e.get("message", "") for e in events)
+
+
+def test_the_look_with_the_nearest_points_normals_keeps_the_fit_that_measures_better(seed):
+    # Real degree loops on the noisy torus: one with the normals of a half turned inside out (a
+    # thin part grown over, as the cow's legs were), one with the true normals. Whichever comes
+    # first, the look keeps the true normals' fit, and says so.
+    rng = np.random.default_rng(seed)
+    shape, points = _noisy_torus(1500, rng)
+    truth = shape.normals
+    wrong = np.where(shape.points[:, :1] > 0.0, -truth, truth)
+    method, options, rule, epsilon, delta, min_degree = adaptive.check_settings(
+        "de+polish", None, "capture", DEFAULT_EPSILON, DEFAULT_DELTA, 2, 4)
+    settings = adaptive._LoopSettings(method, options, rule, epsilon, delta, min_degree, 4, None, None, False)
+
+    def loop(normals, stream):
+        cloud = ipfit.Cloud(points, normals)
+        return adaptive._degree_loop(cloud, normals, settings, np.random.default_rng(stream)), cloud
+
+    inside_out, wrong_cloud = loop(wrong, seed)
+    right, right_cloud = loop(truth, seed)
+    assert rule.best_clean_f(inside_out.results) < adaptive._POOR_BELOW  # the case the look is for
+    total: list = []
+    kept, cloud, unit = adaptive._plain_normals(inside_out, wrong_cloud, wrong, truth, settings,
+                                                np.random.default_rng(seed), total)
+    assert len(total) == 1 and unit is truth and np.allclose(cloud.oriented, truth)
+    assert kept.notes[-1].startswith("normals: the nearest points'")
+    assert ipfit.quality(kept.results[kept.index].polynomial, shape.points).f_score > 0.95
+    kept, cloud, unit = adaptive._plain_normals(right, right_cloud, truth, wrong, settings,
+                                                np.random.default_rng(seed), total)
+    assert unit is truth and cloud is right_cloud and kept.results is right.results
+    assert kept.notes[-1].startswith("normals: grown to the noise")
