@@ -11,8 +11,10 @@ very points of ``../shared/tools/corrupt.py``: bare, shuffled, clean or with Gau
 σ = 0.5 % or 1 % of the box diagonal) and fitted by ``fit_adaptive(points, rng=seed)`` twice in the same worker:
 with the second looks switched off (``ipfit.degree.adaptive._REORIENT_FEWEST`` set above 1,
 so that no share of turned normals is enough, and ``_POOR_BELOW`` below 0, so that no fit
-measures poorly) and as shipped: the second pass with the fit's signs, and, where ``'auto'``
-left points out and the fit measures poorly, the fit on every point unweighted. Both fits are scored
+measures poorly) and as shipped: the second pass with the fit's signs, where ``'auto'``
+left points out and the fit measures poorly, the fit on every point unweighted, and, where the
+normals were grown to the noise's σ and the fit measures poorly, the fit with the nearest points'
+normals. Both fits are scored
 against the clean mesh (``ipfit.zeroset.quality.quality``, τ = 2 % of the box diagonal); the page
 gives per shape the F-scores, degrees and seconds of both, and whether the second pass ran and was
 kept. Both fits of one case run in the same process one after the other, so their times are a
