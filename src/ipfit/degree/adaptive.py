@@ -297,15 +297,16 @@ _REORIENT_FEWEST = 0.01
 # another degree loop.
 _POOR_BELOW = EXTEND_BELOW[3]
 # A noisy 3D cloud whose normals were grown to the noise's σ is fitted again with its nearest
-# points' normals when the first fit measures poorly (_POOR_BELOW), and that fit is kept only when
-# its F-score on the points is higher by more than this (_plain_normals). Under σ = 1 % of the box
-# diagonal, a fit that chases the noise at a higher degree scores a little higher on the noisy
-# points while lower against the clean shape (Jacobson's rocker arm: 0.904 for 0.881 on the
-# points, 0.82 for 0.92 on its surface); a fit whose grown normals turned a thin part inside out
-# scores lower by more (the Turk kerolamp: 0.737 for 0.772, 0.66 for 0.76 on its surface; the
-# turbine's blades: 0.81 for 0.93; the cow's legs: 0.55 for 0.92). Chosen between those measured
-# gains, which no other noisy model of docs/robust.md and docs/robust-external.md came near.
-_NEAREST_NORMALS_MARGIN = 0.03
+# points' normals when the first fit measures poorly (_POOR_BELOW). That fit is kept when its
+# F-score on the points is higher by more than the degree rule's tolerance, or, when its selected
+# degree is higher, by more than this (_plain_normals): under σ = 1 % of the box diagonal a
+# higher degree chases the noise, scoring a little higher on the noisy points and lower against
+# the clean shape (Jacobson's rocker arm: degree 10 for 8, 0.904 for 0.881 on the points, 0.82 for
+# 0.92 on its surface; cheburashka: 0.921 for 0.890, 0.94 for 0.98), while grown normals that
+# turned a thin part inside out lose at any degree (the Turk kerolamp: degree 4 for 6, 0.772 for
+# 0.737, 0.76 for 0.66 on its surface; the turbine's blades: 0.93 for 0.81; the cow's legs, a
+# degree 2: 0.92 for 0.55).
+_NEAREST_NORMALS_MARGIN = 0.05
 # A 3D cloud is flat when its spread across its best plane is below this share of its widest
 # spread: far below any scan's noise (a sheet of paper: 3e-4), above the rounding of a 2D outline
 # or mesh saved with z = 0 and then turned (1e-8 through the covariance).
@@ -418,7 +419,8 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
     looks flatter; when that fit's best clean F-score is below 0.95, the cloud is fitted again
     with the normals of the nearest points (a part thinner than the neighbourhoods comes out
     inside out as a whole), and that fit is kept when its F-score on the points is higher by
-    more than 0.03, the ``message`` saying which.
+    more than 0.01 (by more than 0.05 at a higher degree, which may chase the noise), the
+    ``message`` saying which.
 
     A 3D cloud whose normals are estimated is fitted twice when it looks noisy
     (``ipfit.normals.estimate.looks_noisy``) or its first fit's best clean F-score is below
@@ -710,7 +712,8 @@ def _plain_normals(loop: _Loop, cloud: Cloud, unit, plain: NDArray, settings: _L
                    total: list[_Loop]) -> tuple[_Loop, Cloud, NDArray]:
     """``(loop, cloud, unit)``, or the degree loop run again with the ``plain`` normals (those of
     the k nearest points, without the noise's σ), its cloud and normals, when it measures better
-    by more than ``_NEAREST_NORMALS_MARGIN``.
+    by more than :data:`~ipfit.degree.rules.TOLERANCE`, or by more than ``_NEAREST_NORMALS_MARGIN``
+    at a higher selected degree.
 
     Neighbourhoods grown to a few σ average the noise, but across a part thinner than that they
     see both sides: a whole part then comes out inside out (the cow's legs at σ = 1 % of the box
@@ -725,13 +728,15 @@ def _plain_normals(loop: _Loop, cloud: Cloud, unit, plain: NDArray, settings: _L
     if again is None:
         return loop, cloud, unit
     trusted = Cloud._checked(cloud.points if cloud.weights is None else cloud.points[cloud.weights >= 0.5], None)
-    better, nearest_f, grown_f = _compared(again, loop, trusted, settings.rule, _NEAREST_NORMALS_MARGIN)
+    higher = again.results[again.index].degree > loop.results[loop.index].degree
+    margin = _NEAREST_NORMALS_MARGIN if higher else TOLERANCE
+    better, nearest_f, grown_f = _compared(again, loop, trusted, settings.rule, margin)
     if better:
         note = (f"normals: the nearest points' (F-score {nearest_f:.3f} on the points, against {grown_f:.3f} with "
                 "those grown to the noise)")
         return dataclasses.replace(again, notes=(*loop.notes, note)), turned, plain
     note = (f"normals: grown to the noise (F-score {grown_f:.3f} on the points; the nearest points' gave "
-            f"{nearest_f:.3f}, not better by more than {_NEAREST_NORMALS_MARGIN:g})")
+            f"{nearest_f:.3f}{' at a higher degree' if higher else ''}, not better by more than {margin:g})")
     return dataclasses.replace(loop, notes=(*loop.notes, note)), cloud, unit
 
 
