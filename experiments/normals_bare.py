@@ -3,7 +3,7 @@
 Usage::
 
     python experiments/normals_bare.py [--only NAME ...] [--fit] [--out FILE.md] [--turk DIR]
-                                       [--meshes FILE ...] [--noise SIGMA] [--wide]
+                                       [--meshes FILE ...] [--noise SIGMA] [--wide] [--known-noise]
 
 For the 12 meshes of ``../shared/data/turk-dev`` (vertices as ``trimesh.load(f, force='mesh',
 process=True)`` merges them) and the bundled apple and duck (``ipfit.load``): per shape,
@@ -29,7 +29,10 @@ vertex, and ``--fit`` scores the fits of the noisy points against the clean mesh
 adds the estimate with the noisy-data path forced in 3D (``ipfit.normals.scale._GAIN`` set to
 infinity: every point's neighbourhood grown to its flattest local scale and the signs propagated
 on the denoised coarse sample, even where no wider neighbourhood is flatter): columns ``flip
-wide`` and, with ``--fit``, ``F wide`` (docs/normals-noise.md).
+wide`` and, with ``--fit``, ``F wide`` (docs/normals-noise.md). ``--known-noise`` adds the estimate
+that ``fit_adaptive`` makes of a noisy cloud, given the noise's σ the outlier score finds
+(``ipfit.estimate_normals(points, noise=ipfit.robust.score_outliers(points).noise_scale)``):
+columns ``off60 σ`` and ``flip σ``, and with ``--fit``, ``F σ``.
 
 The reference's signs are outward wherever a ray along them escapes the mesh and one against
 them does not (checked: at most 0.5 % inward, 5 % on walkman); walkman's vertices repeat with
@@ -126,9 +129,12 @@ def main(argv=None) -> None:
     parser.add_argument("--meshes", nargs="*", default=[], help="more mesh files")
     parser.add_argument("--noise", type=float, default=0.0, help="issue 30's noise, a share of the box diagonal")
     parser.add_argument("--wide", action="store_true", help="also the estimate with the noisy-data path forced")
+    parser.add_argument("--known-noise", action="store_true",
+                        help="also the estimate given the outlier score's noise scale, as fit_adaptive makes it")
     args = parser.parse_args(argv)
-    cols = ["cos10", "cos25", "cos50", "cos75", "off60", "flip", "s"] + (["flip wide"] if args.wide else [])
-    fits = ("mesh", "est") + (("wide",) if args.wide else ())
+    cols = ["cos10", "cos25", "cos50", "cos75", "off60", "flip", "s"] + (["flip wide"] if args.wide else []) + \
+        (["off60 σ", "flip σ"] if args.known_noise else [])
+    fits = ("mesh", "est") + (("wide",) if args.wide else ()) + (("σ",) if args.known_noise else ())
     fit_cols = [f"{key} {label}" for label in fits for key in ("F", "P", "R", "deg")]
     header = ["shape", "N"] + cols + (fit_cols if args.fit else [])
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
@@ -147,6 +153,12 @@ def main(argv=None) -> None:
         if args.wide:
             normals["wide"] = wide_estimate(points)
             row["flip wide"] = compare(normals["wide"], mesh_normals)["flip"]
+        if args.known_noise:
+            from ipfit.robust import score_outliers
+
+            normals["σ"] = ipfit.estimate_normals(points, noise=score_outliers(points).noise_scale)
+            known = compare(normals["σ"], mesh_normals)
+            row["off60 σ"], row["flip σ"] = known["off60"], known["flip"]
         if args.fit:
             for label in fits:
                 start = time.perf_counter()
@@ -171,9 +183,12 @@ def main(argv=None) -> None:
         legend = ("Columns: *cos10 … cos75*, quantiles of |cos| between the estimated and the mesh's normal lines; "
                   "*off60*, the share of lines more than 60° off; *flip*, the share of opposite signs among the "
                   "points whose line is right (|cos| > 0.7); *flip wide*, the same for the estimate with the "
-                  "noisy-data path forced in 3D (`ipfit.normals.scale._GAIN` infinite); *s*, seconds of "
+                  "noisy-data path forced in 3D (`ipfit.normals.scale._GAIN` infinite); *off60 σ, flip σ*, the "
+                  "same for the estimate given the noise's σ that the outlier score finds, as `fit_adaptive` makes "
+                  "it (`estimate_normals(points, noise=score_outliers(points).noise_scale)`); *s*, seconds of "
                   "`estimate_normals`; with `--fit`, *F, P, R, deg* of `fit_adaptive(points, normals, rng=0, outliers=\"none\")` "
-                  "with the mesh's (*mesh*), the estimated (*est*) and the forced path's (*wide*) normals, scored "
+                  "with the mesh's (*mesh*), the estimated (*est*), the forced path's (*wide*) and the σ-given "
+                  "(*σ*) normals, scored "
                   "against the clean mesh. A noisy point's reference normal is its nearest clean vertex's; points "
                   "whose reference normal is zero (unreferenced vertices) are left out. Shapes: "
                   "`../shared/data/turk-dev` and the meshes named (for `../common-3d-test-models`, see "
