@@ -305,7 +305,8 @@ _POOR_BELOW = EXTEND_BELOW[3]
 # 0.92 on its surface; cheburashka: 0.921 for 0.890, 0.94 for 0.98), while grown normals that
 # turned a thin part inside out lose at any degree (the Turk kerolamp: degree 4 for 6, 0.772 for
 # 0.737, 0.76 for 0.66 on its surface; the turbine's blades: 0.93 for 0.81; the cow's legs, a
-# degree 2: 0.92 for 0.55).
+# degree 2: 0.94 for 0.55). The messages in docs/reorient.json and docs/reorient-external.json
+# give both F-scores of every look.
 _NEAREST_NORMALS_MARGIN = 0.05
 # A 3D cloud is flat when its spread across its best plane is below this share of its widest
 # spread: far below any scan's noise (a sheet of paper: 3e-4), above the rounding of a 2D outline
