@@ -52,7 +52,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def noise_setting(text: str) -> str | float:
-    """--noise: 'auto' or σ >= 0, checked by the library's rule."""
+    """--noise: 'auto', or σ >= 0 checked as the other non-negative flags are."""
     if text == "auto":
         return text
     try:
