@@ -16,8 +16,8 @@ with seed 0:
   topology than the data's, the lowest degree of the data's topology within the rule's
   tolerance of the best clean F-score, as fitted or repaired to it, at no cost in F-score; when
   there is none and the rule stopped below its last degree, one degree more, repaired for it
-  (set aside when it has another topology too); when there is still none, in 3D the degree of
-  the data's topology with the highest F-score within ``TOPOLOGY_BAND[3]`` (0.04) of the best;
+  (set aside when it has another topology too); when there is still none, the degree of the
+  data's topology with the highest F-score within ``TOPOLOGY_BAND`` (0.04) of the best;
 * **strict**: the ``"topology"`` rule (``ipfit fit --rule topology``): the topology held at any cost.
 
 The runs are the same fit until a degree (or a repair round) has another topology than the
@@ -212,8 +212,8 @@ def _notes(rows: list[dict]) -> list[str]:
     if wrong_default:
         shapes = "1 shape" if len(wrong_default) == 1 else f"{len(wrong_default)} shapes"
         out.append(f"- The default keeps another topology than the data's on {shapes} where "
-                   "no degree of the data's topology (as fitted or repaired) comes within the rule's tolerance "
-                   "(in 3D its wider topology band) of the best clean F-score (the strict rule's F there): "
+                   "no degree of the data's topology (as fitted or repaired) comes within the rule's topology "
+                   "band of the best clean F-score (the strict rule's F there): "
                    + ", ".join(f"{r['shape']} ({r['default']['f_score']:.3f}; {r['after']['f_score']:.3f})"
                                for r in wrong_default) + ".")
     total = {key: sum(r[key]["seconds"] for r in rows) for key, _ in RUNS}
@@ -235,6 +235,13 @@ def _notes(rows: list[dict]) -> list[str]:
     return out
 
 
+def _band() -> str:
+    from ipfit.degree.rules import TOPOLOGY_BAND
+
+    bands = sorted(set(TOPOLOGY_BAND.values()))
+    return f"{bands[0]:g}" if len(bands) == 1 else ", ".join(f"{TOPOLOGY_BAND[d]:g} in {d}D" for d in (2, 3))
+
+
 def markdown(rows: list[dict], every: int, command: str, source: str | None = None) -> str:
     only_external = all(r["group"] == "external" for r in rows)
     out = ["# Topology of the selected zero set (issue 31)", "",
@@ -248,8 +255,8 @@ def markdown(rows: list[dict], every: int, command: str, source: str | None = No
            "has another topology than the data's, the lowest degree of the data's topology within the rule's "
            "tolerance, 0.01, of the best clean F-score, as fitted or repaired to it, is selected instead; when "
            "there is none and the rule stopped below its last degree, one degree more is fitted and repaired for "
-           "it, and set aside when it has another topology too; when there is still none, in 3D the degree of the "
-           "data's topology with the highest F-score within 0.04 of the best clean one, "
+           "it, and set aside when it has another topology too; when there is still none, the degree of the "
+           f"data's topology with the highest F-score within {_band()} of the best clean one, "
            "`ipfit.degree.rules.TOPOLOGY_BAND`; otherwise the choice stays) and **strict** "
            "(`ipfit fit --rule topology`: a degree of another topology is not clean, at any cost in F-score). "
            "The repair holds the places of a wrong topology: "

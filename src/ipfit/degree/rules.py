@@ -21,7 +21,7 @@
 * **prefer the data's topology** where the data tells it with confidence: when that choice has
   another, the lowest degree of the band (within :data:`TOLERANCE` of the best clean F-score)
   that has the data's topology, as fitted or repaired to it, is selected instead
-  (:meth:`CaptureRule.settle`); with none, in 3D the degree of the data's topology with the
+  (:meth:`CaptureRule.settle`); with none, the degree of the data's topology with the
   highest F-score within :data:`TOPOLOGY_BAND` of the best; else the choice stays and its
   topology is reported.
 
@@ -118,12 +118,12 @@ MISSES_BELOW = 0.5
 #: capture rule, per dimension: when no degree within :data:`TOLERANCE` of the best clean
 #: F-score has the data's topology (known with confidence), as fitted, repaired to it or one
 #: degree beyond the stop, the degree of the data's topology with the highest F-score within
-#: this of the best is selected (:meth:`CaptureRule.settle`). In 3D a surface in pieces or with
-#: a handle the data has not is another solid (the cow's legs cut off at degree 8, F 0.965, held
-#: on at degree 6, 0.934; docs/topology-external.md), and 3D F-scores are coarser (the rule's
-#: "good" is 0.95 there, 0.98 in 2D). In 2D the band is the rule's tolerance: holding a thin
-#: part costs the outlines the F-score of the degree-rule page's bar (docs/topology.md).
-TOPOLOGY_BAND = {2: TOLERANCE, 3: 0.04}
+#: this of the best is selected (:meth:`CaptureRule.settle`). A solid in pieces or with a handle
+#: the data has not, a tail or a leg as a loop of its own, is another shape at any F-score: the
+#: cow's legs cut off at degree 8 (F 0.965) are held on at degree 6 (0.934,
+#: docs/topology-external.md), the MPEG-7 cattle's legs at 0.985 against 0.999 (docs/topology.md).
+#: Beyond 0.04 the F-score itself says the shape is lost (the fly whose wings join at 0.69).
+TOPOLOGY_BAND = {2: 0.04, 3: 0.04}
 
 
 def select_degree(degrees: Sequence[int], smoothness: Sequence[float], epsilon: float = 0.01,
@@ -512,11 +512,11 @@ class CaptureRule(DegreeRule):
     on the degrees of that band only, lowest first), is selected instead. Where no such degree
     exists and the loop stopped below its last degree, :func:`~ipfit.fit_adaptive` fits one
     degree more, repaired for the topology at once (set aside, recorded, when it has another
-    topology too). Where there is still none, in 3D the degree of the data's topology with the
-    highest F-score within :attr:`topology_band` (:data:`TOPOLOGY_BAND`) of the best clean one is
-    selected (a solid in pieces is another solid); otherwise (a thin part that can only join the
-    outline at a cost in F-score) the choice stays, its topology reported; the ``"topology"``
-    rule holds the topology at any cost.
+    topology too). Where there is still none, the degree of the data's topology with the highest
+    F-score within :attr:`topology_band` (:data:`TOPOLOGY_BAND`) of the best clean one is
+    selected (a solid in pieces is another solid, a leg as its own loop another outline);
+    otherwise (a thin part that can only join at a greater cost in F-score) the choice stays,
+    its topology reported; the ``"topology"`` rule holds the topology at any cost.
     """
 
     name = "capture"
