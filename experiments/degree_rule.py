@@ -13,8 +13,10 @@ For every contour it runs three pipelines and measures the selected degree's zer
 * **geometric**: the recommended pipeline as it was before the capture rule (the paper's rule
   restricted to clean degrees, search on 3,000 points, degrees up to 10), run by the code of
   ``--before`` (a checkout of commit 69d992a);
-* **capture**: today's recommended pipeline (``ipfit fit``: the capture rule of
-  :mod:`ipfit.degree.rules`, degrees up to 20, beyond 14 only while the F-score rises).
+* **capture**: today's recommended pipeline (the capture rule of :mod:`ipfit.degree.rules`,
+  degrees up to 20, beyond 14 only while the F-score rises) on the points as arrays,
+  ``fit_adaptive(points, normals)``: without the contour's order its topology is not known, so
+  none is held (``ipfit fit FILE`` holds it: ``experiments/topology.py``'s default column).
 
 Two worker processes run side by side (``experiments/_versions.py``): one with the code of
 ``--before`` (the geometric pipeline), one with this checkout (the paper's and the capture
@@ -120,8 +122,11 @@ def markdown(rows: list[dict], seed: int) -> str:
         "* **paper**: `ipfit fit --paper` (the paper's DE and Algorithm 1, degrees up to 10);",
         "* **geometric**: the recommended pipeline before the capture rule, run by the code of commit 69d992a "
         "(Algorithm 1 restricted to clean degrees, search on 3,000 points, degrees up to 10);",
-        "* **capture**: `ipfit fit` today (the capture rule of `ipfit.degree.rules`, degrees up to 20 within 2 points per "
-        "coefficient, beyond 14 only while the F-score rises, the 2D search settings of `ipfit.fitting.options.AUTO`).",
+        "* **capture**: the recommended pipeline today (the capture rule of `ipfit.degree.rules`, degrees up to 20 within "
+        "2 points per coefficient, beyond 14 only while the F-score rises, the 2D search settings of "
+        "`ipfit.fitting.options.AUTO`) on the points as arrays, `fit_adaptive(points, normals)`: without the contour's "
+        "order its topology is not known, so none is held (`ipfit fit FILE` holds it: the default column of "
+        "docs/topology.md).",
         "",
         "| pipeline | median F | 10th percentile | minimum | with spurious components | not closed | "
         "mean degree | total seconds |",
