@@ -598,3 +598,28 @@ def test_the_panels_share_one_measurement_of_the_data(monkeypatch):
     fig = plot_result(result, boot.points)
     assert len(built) == 1
     assert sum(ax.name == "rectilinear" and bool(ax.lines) for ax in fig.axes) >= len(result.degrees)
+
+
+def test_a_long_topology_note_stays_over_its_own_panel():
+    # "2 loops nested (depths 0, 0) where the data's are nested (depths 0, 1)" is wider than a
+    # panel: unwrapped, it ran into the next panel's title.
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from ipfit.viz.plotting import plot_result
+    from ipfit.zeroset.topology import Topology, describe_mismatch
+
+    shape = synthetic.ellipse()
+    data = adaptive_result(shape.polynomial, {2: shape.polynomial, 4: synthetic.circle(radius=1.5).polynomial},
+                           selected=2, comparisons=False)
+    apart, nested = Topology(2, 2, nesting=(0, 0)), Topology(2, 2, nesting=(0, 1), source="contour")
+    note = describe_mismatch(apart, nested)
+    assert note.startswith("2 loops nested") and len(note) > 60
+    for entry in data["degrees"]:
+        entry["quality"] = {"topology": apart.to_dict(), "data_topology": nested.to_dict()}
+    fig = plot_result(data, shape.points, resolution=64)
+    FigureCanvasAgg(fig).draw()
+    titles = [ax.title for ax in fig.axes]
+    assert all(" ".join(t.get_text().split()).endswith(note) for t in titles[:2])
+    boxes = [t.get_window_extent() for t in titles]
+    for left, right in zip(boxes, boxes[1:]):  # the panels sit side by side in one row
+        assert left.x1 <= right.x0

@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 import os
 import sys
+import textwrap
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, cast
@@ -87,6 +88,10 @@ _DISPLAY_SAMPLES = 2000
 # (and matplotlib's 3D axes keep wide margins), so 3D figures have larger panels, at most 3 a row.
 _PANEL_INCHES = {2: 3.4, 3: 4.8}
 _MAX_COLUMNS_3D = 3
+# A title line wider than its panel runs into the next panel's (a nesting mismatch reads "3 loops
+# nested (depths 0, 0, 0) where the data's are nested (depths 0, 1, 1)"); a medium-size character
+# of the default font is about 6 points wide on average.
+_TITLE_CHARACTERS = {dim: int(inches * 72 / 6) for dim, inches in _PANEL_INCHES.items()}
 # A result's box is the data's grown by a quarter of its longest side on every side: at this zoom
 # the data's part of it fills the panel, and a piece of zero set near the box's edge may be cut.
 _RESULT_ZOOM_3D = 1.6
@@ -681,7 +686,7 @@ def plot_result(result, points: ArrayLike | None = None, path: str | os.PathLike
                     label += f"\n{int(flags.sum())} spurious piece{'s' if flags.sum() > 1 else ''} (red)"
             mismatch = _topology_note(view_, payload)
             if mismatch:
-                label += f"\n{mismatch}"
+                label += "\n" + textwrap.fill(mismatch, _TITLE_CHARACTERS[dim])
             if dim == 2:
                 plot_curve(payload, shown, ax, zero_set=zs, spurious=flags, outliers=shown_outliers, axis_off=True,
                            separate=bool(mismatch))
