@@ -305,7 +305,7 @@ def markdown(rows: list[dict], every: int, command: str, source: str | None = No
     groups = {r["group"] for r in rows}
     title = {frozenset({"external"}): ": meshes from elsewhere", frozenset({"glyphs"}): ": font glyphs"}
     out = [f"# Topology of the selected zero set{title.get(frozenset(groups), '')} (issue 31)", "",
-           f"Regenerate with `{command}`" + ("" if only_external else " (about 25 min on 2 cores)") + "; "
+           f"Regenerate with `{command}`" + ("" if only_external else " (about 12 min on 2 cores)") + "; "
            f"{date.today().isoformat()}, Python {platform.python_version()}, seed 0. "
            + ("Shapes from outside the project, which nobody here tuned to." if only_external
               else "Development data, not held out."), "",
