@@ -541,7 +541,7 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
         if plain is not None:
             # measured on the points both fits trust (the supported weights' inliers), not on
             # every point kept: a sheet grown through strays the score missed would gain there
-            trusted = Cloud._checked(pts[cast(NDArray[np.float64], weights) >= 0.5], None)
+            trusted = _trusted(pts, weights)
             if _measures_better(plain, supported, trusted, rule):
                 cloud = Cloud._checked(pts, cloud.oriented, faces, scored_weights)
                 note = "weights: the outlier score's alone (the fit with the normals' support on them measured lower)"
@@ -553,7 +553,7 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
     if every is not None and loop.reason != "interrupted" and rule.best_clean_f(loop.results) < _POOR_BELOW:
         # measured, as the weightings are, on the points the score and the normals' support both
         # trust: a fit through every point gains on strays the score missed
-        trusted = Cloud._checked(pts[cast(NDArray[np.float64], weights) >= 0.5], None)
+        trusted = _trusted(pts, weights)
         loop, unweighted = _unweighted(loop, every, cast(OutlierScore, scored), trusted, settings, unweighted_pass,
                                        total)
         if unweighted is not None:
@@ -605,6 +605,12 @@ class _Loop:
     reason: str
     message: str
     notes: tuple[str, ...] = ()  # what fit_adaptive decided around the loop, said after its message
+
+
+def _trusted(points: NDArray, weights: NDArray | None) -> Cloud:
+    """The points two fits are compared on: those of weight at least 0.5 (every point unweighted),
+    so that a fit that grew a sheet through strays the score missed gains nothing there."""
+    return Cloud._checked(points if weights is None else points[weights >= 0.5], None)
 
 
 def _measures_better(one: _Loop, other: _Loop, points: Cloud, rule: DegreeRule, margin: float = 0.0) -> bool:
@@ -662,7 +668,7 @@ def _reoriented(loop: _Loop, cloud: Cloud, unit, settings: _LoopSettings, genera
     again = _another_loop(turned, unit * signs, settings, generator, total)
     if again is None:
         return loop
-    trusted = Cloud._checked(cloud.points if cloud.weights is None else cloud.points[cloud.weights >= 0.5], None)
+    trusted = _trusted(cloud.points, cloud.weights)
     share = f"{flip.mean():.0%} of the normals turned to the degree-{poly.degree} fit's gradient"
     if _measures_better(again, loop, trusted, settings.rule):
         return dataclasses.replace(again, notes=(*loop.notes, f"{share} and fitted again (measured better)"))
@@ -728,7 +734,7 @@ def _plain_normals(loop: _Loop, cloud: Cloud, unit, plain: NDArray, settings: _L
     again = _another_loop(turned, plain, settings, generator, total)
     if again is None:
         return loop, cloud, unit
-    trusted = Cloud._checked(cloud.points if cloud.weights is None else cloud.points[cloud.weights >= 0.5], None)
+    trusted = _trusted(cloud.points, cloud.weights)
     higher = again.results[again.index].degree > loop.results[loop.index].degree
     margin = _NEAREST_NORMALS_MARGIN if higher else TOLERANCE
     better, nearest_f, grown_f = _compared(again, loop, trusted, settings.rule, margin)
