@@ -225,3 +225,29 @@ def test_single_member_pass_is_the_sum_of_its_parts(dim, rng, monkeypatch):
     for v, g in (one, single32, blocked):
         assert v == pytest.approx(value, rel=1e-12)
         np.testing.assert_allclose(g, grad, rtol=1e-9, atol=1e-12 * np.abs(grad).max())
+
+
+def test_a_big_cloud_takes_its_far_field_from_an_even_subsample(monkeypatch):
+    # Beyond FAR_FIELD_POINTS points the grid nodes' distances and sides come from an even
+    # subsample: the same nodes away from the data, each distance at most the subsample's
+    # covering radius longer than the exact one, and every side the same (a sphere: inside < 0).
+    from scipy.spatial import cKDTree
+
+    import ipfit.fitting.farfield as farfield_module
+
+    shape = synthetic.sphere(4000, rng=np.random.default_rng(3))
+    exact_nodes, exact = far_field_samples(shape.points, shape.normals)
+    monkeypatch.setattr(farfield_module, "FAR_FIELD_POINTS", 1000)
+    monkeypatch.setattr(farfield_module, "FAR_FIELD_SUBSAMPLE", 400)
+    nodes, targets = far_field_samples(shape.points, shape.normals)
+    pick = ipfit.geometry.sampling.spread_subsample(shape.points, 400)
+    cover = float(cKDTree(shape.points[pick]).query(shape.points)[0].max())
+    assert 0 < cover < 0.3  # coarser than the cloud, finer than the clearance (0.15) plus the grid
+    common, at_exact, at_sub = np.intersect1d(exact_nodes.view("f8,f8,f8").ravel(), nodes.view("f8,f8,f8").ravel(),
+                                              return_indices=True)
+    assert len(common) >= 0.97 * len(exact_nodes) and len(nodes) <= len(exact_nodes) * 1.03
+    gap = np.abs(targets[at_sub]) - np.abs(exact[at_exact])
+    assert gap.min() >= -1e-12 and gap.max() <= cover + 1e-12
+    assert np.array_equal(np.sign(targets[at_sub]), np.sign(exact[at_exact]))
+    inside = np.linalg.norm(nodes, axis=1) < 1
+    assert np.all(targets[inside] < 0) and np.all(targets[~inside] > 0)

@@ -308,6 +308,38 @@ def test_uncached_blocks_give_the_cached_results(rng, monkeypatch):
     np.testing.assert_allclose(rebuilt.whitening(), cached.whitening(), rtol=1e-10, atol=1e-12)
 
 
+def test_a_rebuilt_design_shares_the_polish_pass_between_threads(rng, monkeypatch):
+    # A design too big to keep is rebuilt at every evaluation; the single-member pass (the
+    # polish's) then splits its blocks between the worker threads. The sums must be those of one
+    # thread to rounding, the same on every call, and the far-field rows and weights counted once.
+    from ipfit.fitting.farfield import FarFieldTerm
+
+    shape = synthetic.torus(2000, rng=rng)
+    weights = rng.uniform(0.2, 1.0, len(shape.points))
+    a = shape.polynomial.coefficients + 0.05 * rng.normal(size=35)
+    far = [FarFieldTerm.from_data(shape.points, shape.normals, 4, weight=0.5)]
+    kept = Objective(shape.points, shape.normals, 4, weights=weights, terms=far, threads=1).value_and_grad(a)
+    monkeypatch.setattr(objective_module, "CACHE_BYTES", 0)
+    monkeypatch.setattr(objective_module, "_SINGLE_ROWS", 300)  # 7 blocks of points, then the far rows
+    one = Objective(shape.points, shape.normals, 4, weights=weights, terms=far, threads=1)
+    two = Objective(shape.points, shape.normals, 4, weights=weights, terms=far, threads=2)
+    assert two._m is None and len(two._member_jobs()) == 8
+    for value, grad in (one.value_and_grad(a), two.value_and_grad(a)):
+        assert value == pytest.approx(kept[0], rel=1e-13)
+        np.testing.assert_allclose(grad, kept[1], rtol=1e-10, atol=1e-13 * np.abs(kept[1]).max())
+    first, again = two.value_and_grad(a), two.value_and_grad(a)
+    assert first[0] == again[0] and np.array_equal(first[1], again[1])  # a fixed summation order
+
+
+def test_a_kept_design_runs_the_polish_pass_on_one_thread(rng):
+    # What a cloud whose design is kept computes does not depend on the thread count, to the bit.
+    shape = synthetic.torus(3000, rng=rng)
+    a = shape.polynomial.coefficients + 0.05 * rng.normal(size=35)
+    one = Objective(shape.points, shape.normals, 4, threads=1).value_and_grad(a)
+    two = Objective(shape.points, shape.normals, 4, threads=2).value_and_grad(a)
+    assert one[0] == two[0] and np.array_equal(one[1], two[1])
+
+
 @pytest.mark.slow
 def test_a_million_points_need_no_full_design_matrix(rng):
     import tracemalloc

@@ -54,6 +54,45 @@ def test_perfect_sphere_fit_against_mesh_faces():
     assert off.precision == 0.0 and off.recall == 0.0
 
 
+def test_the_gap_allowance_follows_its_definition_far_from_the_points():
+    # A zero-set sample of a bare cloud is within τ of the shape when it is within √(τ² + s²) of
+    # its nearest point, s that point's spacing. 12 points on a circle are 0.52 apart, 9 τ: the
+    # circle between them is up to 4.6 τ from both, beyond the 4 τ within which the spacing of
+    # the nearest points alone is looked up; every sample is still within the allowance. Around
+    # 60 points (s = 0.21) a circle 0.4 out is beyond it everywhere; the brute-force definition
+    # decides every sample.
+    from scipy.spatial import cKDTree
+
+    from ipfit.cloud import Cloud
+    from ipfit.zeroset.quality import _measure
+
+    for count, radius in ((12, 1.0), (60, 1.4)):
+        t = np.linspace(0, 2 * np.pi, count, endpoint=False)
+        ring = np.c_[np.cos(t), np.sin(t)]
+        spacing = cKDTree(ring).query(ring, k=[3])[0][:, 0]  # the 2nd nearest other point (dim = 2)
+        poly = synthetic.circle(radius=radius).polynomial
+        q = quality(poly, Cloud(ring))
+        _, _, samples, _, tau, _ = _measure(poly, Cloud(ring), details=True)
+        d, nearest = cKDTree(ring).query(samples.points)
+        within = d <= np.sqrt(tau**2 + spacing[nearest] ** 2)
+        assert q.precision == pytest.approx(samples.weights[within].sum() / samples.weights.sum(), abs=1e-12)
+        assert d.max() > 4 * tau
+        assert q.precision == (1.0 if count == 12 else 0.0)
+
+
+def test_spacing_at_some_points_is_the_cloud_s_spacing_there(rng):
+    from ipfit.cloud import Cloud
+
+    points = rng.normal(size=(500, 3))
+    points[7] = points[8]  # a repeated point: spacing 0 at k = 1
+    index = np.array([8, 3, 7, 3, 499])
+    fresh = Cloud(points)
+    for k in (1, 3):
+        assert np.array_equal(fresh.point_spacing_at(index, k), Cloud(points).point_spacing(k)[index])
+    assert np.array_equal(fresh.point_spacing_at(index, 1)[[0, 2]], [0.0, 0.0])
+    assert np.array_equal(Cloud(points[:2]).point_spacing_at(np.array([0, 1]), 2), [0.0, 0.0])
+
+
 def test_ordered_contour_reference():
     shape = synthetic.circle(24)
     poly = shape.polynomial

@@ -223,6 +223,19 @@ class Cloud:
 
         return self.derived("point_spacing", k, compute)
 
+    def point_spacing_at(self, index: NDArray[np.intp], k: int = 1) -> NDArray[np.float64]:
+        """``point_spacing(k)[index]``, computed for those points alone unless the cloud already
+        holds every point's (a big cloud measured once needs a few of them, not all)."""
+        index = np.asarray(index, dtype=np.intp)
+        with self._lock:
+            every = self._derived.get(("point_spacing", k))
+        if every is not None:
+            return every[index]
+        if len(self) <= k:
+            return np.zeros(len(index))
+        at, back = np.unique(index, return_inverse=True)
+        return self.kdtree.query(self.points[at], k=[k + 1], workers=-1)[0][:, 0][back.ravel()]
+
     @property
     def dim(self) -> int:
         return int(self.points.shape[1])

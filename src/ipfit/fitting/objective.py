@@ -498,11 +498,30 @@ class Objective:
 
         source, factor = basis.derivative_gather(self.dim, self.degree)
         n = self._total
-        sums = np.zeros(3)
-        grad = np.zeros(self.n_coefficients)
-        for rows, normals, weights, n_data in self._member_blocks():
-            sums += member_pass(rows, a, source, factor, normals, weights, self._far64[1], self._far64[2], n_data,
-                                1.0 / n, self.delta, _TINY, self.cap, TAUBIN_CAP, _GRAD_FLOOR, grad)
+
+        def part(blocks) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+            sums, grad = np.zeros(3), np.zeros(self.n_coefficients)
+            for rows, normals, weights, n_data in blocks:
+                sums += member_pass(rows, a, source, factor, normals, weights, self._far64[1], self._far64[2],
+                                    n_data, 1.0 / n, self.delta, _TINY, self.cap, TAUBIN_CAP, _GRAD_FLOOR, grad)
+            return sums, grad
+
+        jobs = self._member_jobs()
+        # A design too big to keep is rebuilt at every evaluation, and building its rows is most
+        # of the pass: the blocks are then shared between the worker threads (both kernels
+        # release the GIL), every workers-th block each, summed in a fixed order: reproducible.
+        # (A million points: 0.28 s an evaluation on one thread.) A kept design's pass stays on
+        # the calling thread, as it always ran: the same sums, to the bit.
+        workers = min(self.threads, len(jobs)) if self._m is None else 1
+        if workers == 1:
+            sums, grad = part(self._member_block(job) for job in jobs)
+        else:
+            futures = [_pool(workers).submit(part, (self._member_block(job) for job in jobs[k::workers]))
+                       for k in range(workers)]
+            parts = [f.result() for f in futures]
+            sums, grad = parts[0]
+            for more_sums, more_grad in parts[1:]:
+                sums, grad = sums + more_sums, grad + more_grad
         value = sums[0] / n + self.delta * (1.0 - sums[1] / n) + sums[2]
         for term in self._extra:
             tv, tg = term.value_and_grad(a)
@@ -510,20 +529,26 @@ class Objective:
             grad = grad + np.asarray(tg, dtype=np.float64)
         return float(value), grad
 
-    def _member_blocks(self):
-        """(float64 rows, their normals and weights, how many are data rows) for the single-member pass:
-        the data then the far-field samples, stacked into one block (kept) when they fit in
-        one, so that a polish step is one compiled call; bigger clouds in blocks of rows."""
-        far = self._far64[0]
-        if self.n_points + len(far) <= _SINGLE_ROWS:
-            if self._member_rows is None:
-                self._member_rows = np.vstack([self._design(0, self.n_points, np.float64), far])
-            yield self._member_rows, self.normals64, self._weights, self.n_points
-            return
-        for lo, hi in basis.point_blocks(self.n_points, _SINGLE_ROWS):
-            yield self._design(lo, hi, np.float64), self.normals64[lo:hi], self._weights[lo:hi], hi - lo
-        if len(far):
-            yield far, self.normals64[:0], self._weights[:0], 0
+    def _member_jobs(self) -> list[tuple[str, int, int]]:
+        """The single-member pass's blocks of rows, in order: the data then the far-field samples,
+        stacked into one block (kept) when they fit in one, so that a polish step is one
+        compiled call; bigger clouds in blocks of points, then the far-field rows."""
+        if self.n_points + len(self._far64[0]) <= _SINGLE_ROWS:
+            return [("stacked", 0, self.n_points)]
+        jobs = [("points", lo, hi) for lo, hi in basis.point_blocks(self.n_points, _SINGLE_ROWS)]
+        return jobs + [("far", 0, 0)] if len(self._far64[0]) else jobs
+
+    def _member_block(self, job: tuple[str, int, int]):
+        """(float64 rows, their normals and weights, how many are data rows) of a job of
+        :meth:`_member_jobs`."""
+        kind, lo, hi = job
+        if kind == "points":
+            return self._design(lo, hi, np.float64), self.normals64[lo:hi], self._weights[lo:hi], hi - lo
+        if kind == "far":
+            return self._far64[0], self.normals64[:0], self._weights[:0], 0
+        if self._member_rows is None:
+            self._member_rows = np.vstack([self._design(0, self.n_points, np.float64), self._far64[0]])
+        return self._member_rows, self.normals64, self._weights, self.n_points
 
 
 def measures(poly_or_population: ImplicitPolynomial | ArrayLike, points: ArrayLike, normals: ArrayLike,

@@ -157,6 +157,11 @@ def _fmt(value) -> str:
     return str(value)
 
 
+#: Zero-set samples of a bare cloud farther than this many τ from every point are judged within
+#: a sampling gap (:func:`_within_gaps`) only after every point's spacing is known.
+_NEAR_GAPS = 4.0
+
+
 def looks_like_contour(points: ArrayLike | Cloud) -> bool:
     """Heuristic: are 2D ``points`` listed in order along a contour?
 
@@ -182,13 +187,24 @@ def _within_gaps(cloud: Cloud, ref: Target, query: NDArray, d_zero: NDArray, tau
     their nearest data point (``ref`` holds the cloud's points), s its local spacing (see the
     module notes)."""
     within = d_zero <= tau
-    spacing = cloud.point_spacing(cloud.dim)
-    reach = math.sqrt(tau**2 + float(spacing.max(initial=0.0)) ** 2)
     maybe = np.flatnonzero(~within)
-    if maybe.size and reach > tau:
-        d, nearest = ref.tree.query(query[maybe], distance_upper_bound=reach, workers=query_workers(maybe.size))
-        found = np.isfinite(d)
-        within[maybe[found]] = d[found] <= np.sqrt(tau**2 + spacing[nearest[found]] ** 2)
+    if not maybe.size:
+        return within
+    # Samples near the data need the spacing of their nearest points only; every point's (whose
+    # largest bounds the reach) only for samples farther out: a 10⁶-point cloud's spacings took
+    # 1.8 s of the 4.4 s its one measurement took, for a few hundred samples beyond τ.
+    near = _NEAR_GAPS * tau
+    d, nearest = ref.tree.query(query[maybe], distance_upper_bound=near, workers=query_workers(maybe.size))
+    found = np.isfinite(d)
+    within[maybe[found]] = d[found] <= np.sqrt(tau**2 + cloud.point_spacing_at(nearest[found], cloud.dim) ** 2)
+    far = maybe[~found]
+    if far.size:
+        spacing = cloud.point_spacing(cloud.dim)
+        reach = math.sqrt(tau**2 + float(spacing.max(initial=0.0)) ** 2)
+        if reach > near:
+            d, nearest = ref.tree.query(query[far], distance_upper_bound=reach, workers=query_workers(far.size))
+            found = np.isfinite(d)
+            within[far[found]] = d[found] <= np.sqrt(tau**2 + spacing[nearest[found]] ** 2)
     return within
 
 
