@@ -26,7 +26,10 @@ worker threads (default: the usable cores) that each run single-threaded BLAS an
 reduction (which releases the GIL). Multithreaded BLAS on small blocks was measured to stall
 badly as soon as another process competes for the cores (its threads spin-wait for each
 other), and numpy and SciPy each bundle their own OpenBLAS whose idle threads compete too.
-Without threadpoolctl the blocks run one after the other with BLAS's own threads.
+Without threadpoolctl the blocks run one after the other with BLAS's own threads. The
+single-member pass of the polish (:meth:`Objective.value_and_grad`, no BLAS) runs on the calling
+thread while the design is kept, and shares its blocks between the worker threads when the
+design is rebuilt at every evaluation (a big cloud's step on every point).
 
 Points where ∇f = 0: the cosine is 0 there and the Taubin term is :data:`TAUBIN_CAP` (0 if
 f = 0 too, a singular point on the curve). Each point's Taubin term is capped at
