@@ -316,3 +316,31 @@ def test_the_second_fits_of_a_weighted_or_noisy_surface_are_announced():
                                               "fitting again with the normals of the nearest points (not grown to "
                                               "the noise)",
                                               "1,234 normals turned to the fit's gradient, fitting again"]
+
+
+def test_the_topology_line_says_when_a_repair_reached_the_data_topology_but_was_not_kept():
+    # The progress said "repaired to the data's topology, F-score 0.912" while the rule kept the
+    # degree's own fit (below its band): the summary's line for that degree says so too, instead
+    # of a bare mismatch that reads as if the repair had failed.
+    from types import SimpleNamespace
+
+    from ipfit.cli.fit import _topology_line
+    from ipfit.zeroset.topology import Topology
+
+    q = Quality(recall=0.95, precision=0.95, f_score=0.95, chamfer=0.01, n_components=3, n_spurious=0, closed=True,
+                tau=0.05, data_to_zero_set=0.01, zero_set_to_data=0.01, grid_step=0.01, reference="contour",
+                topology=Topology(2, 3, nesting=(0, 0, 0)), data_topology=Topology(2, 1, nesting=(0,), source="contour"))
+    assert q.topology_matches is False
+
+    def rounds(*rows):
+        return tuple({"target": "topology", "far_term_weight": w, "clean": clean, "f_score": f, "topology_matches": m}
+                     for w, clean, f, m in rows)
+
+    entry = SimpleNamespace(degree=14, quality=q, cleanup=())
+    assert _topology_line(entry) == "degree 14: 3 loops where the data has 1"
+    entry = SimpleNamespace(degree=14, quality=q, cleanup=rounds(
+        (1.0, True, 0.93, False), (3.2, True, 0.912, True), (10.0, False, 0.95, True)))
+    assert _topology_line(entry) == ("degree 14: 3 loops where the data has 1; a repair reached the data's "
+                                     "topology at F-score 0.912, not kept")
+    entry = SimpleNamespace(degree=14, quality=q, cleanup=rounds((10.0, False, 0.88, True)))
+    assert _topology_line(entry).endswith("at F-score 0.880 with a zero set not clean, not kept")

@@ -323,7 +323,7 @@ def run(args: argparse.Namespace) -> int:
             if entry.reason.startswith("rejected"):
                 print(f"degree {entry.degree} {entry.reason}")
             elif entry.quality is not None and entry.quality.topology_matches is False:
-                _say_topology(entry.degree, entry.quality)
+                print(_topology_line(entry))
         if result.reason == "fixed":
             chosen = result.at_degree(result.selected_degree)
             line = f"fixed degree {result.selected_degree}: smoothness {table.split(': ')[1]}"
@@ -343,11 +343,20 @@ def run(args: argparse.Namespace) -> int:
     return 130 if result.reason == "interrupted" else 0
 
 
-def _say_topology(degree: int, quality) -> None:
-    """'degree 14: 5 loops where the data has 1': a zero set of another shape than the data's."""
+def _topology_line(entry) -> str:
+    """'degree 14: 5 loops where the data has 1': a zero set of another shape than the data's,
+    and, when a repair round reached the data's (said while it ran) but the degree kept its own
+    fit, that round's F-score: the progress line and this one then tell one story."""
     from ..zeroset.topology import describe_mismatch
 
-    print(f"degree {degree}: {describe_mismatch(quality.topology, quality.data_topology)}")
+    q = entry.quality
+    line = f"degree {entry.degree}: {describe_mismatch(q.topology, q.data_topology)}"
+    reached = [a for a in entry.cleanup if a.get("topology_matches") is True]
+    if reached:
+        best = max(reached, key=lambda a: (a["clean"], a["f_score"]))
+        line += (f"; a repair reached the data's topology at F-score {best['f_score']:.3f}"
+                 f"{'' if best['clean'] else ' with a zero set not clean'}, not kept")
+    return line
 
 
 def _suffixes(args: argparse.Namespace, dim: int) -> list[str]:
