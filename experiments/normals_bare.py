@@ -4,6 +4,7 @@ Usage::
 
     python experiments/normals_bare.py [--only NAME ...] [--fit] [--out FILE.md] [--turk DIR]
                                        [--meshes FILE ...] [--noise SIGMA] [--wide] [--known-noise]
+                                       [--samples N ...]
 
 For the 12 meshes of ``../shared/data/turk-dev`` (vertices as ``trimesh.load(f, force='mesh',
 process=True)`` merges them) and the bundled apple and duck (``ipfit.load``): per shape,
@@ -33,6 +34,12 @@ wide`` and, with ``--fit``, ``F wide`` (docs/normals-noise.md). ``--known-noise`
 that ``fit_adaptive`` makes of a noisy cloud, given the noise's σ the outlier score finds
 (``ipfit.estimate_normals(points, noise=ipfit.robust.score_outliers(points).noise_scale)``):
 columns ``off60 σ`` and ``flip σ``, and with ``--fit``, ``F σ``.
+
+``--samples N ...`` replaces each shape's vertices by N points drawn uniformly on its surface
+(``trimesh.sample.sample_surface``, seed 0), a row per shape and N: a dense scan of the object,
+each point's reference the outward normal of its face. Only meshes with consistently wound faces
+have an outward side to compare with (their face normals times the sign of their signed volume,
+which small holes do not change); the others are left out and named (docs/normals-dense.md).
 
 The reference's signs are outward wherever a ray along them escapes the mesh and one against
 them does not (checked: at most 0.5 % inward, 5 % on walkman); walkman's vertices repeat with
@@ -79,6 +86,19 @@ def shapes(only, turk: Path, meshes=(), noisy: bool = False):
                    np.asarray(mesh.faces))
 
 
+def surface_samples(clean, faces, count: int):
+    """``count`` points uniform on the mesh (seed 0) and their faces' outward normals, or None when
+    the mesh has no outward side to compare with (inconsistently wound faces). The outward side
+    is that of the faces' signed volume (a mesh with small holes has one too)."""
+    import trimesh
+
+    mesh = trimesh.Trimesh(clean, faces, process=False)
+    if not mesh.is_winding_consistent or mesh.volume == 0:
+        return None
+    points, face = trimesh.sample.sample_surface(mesh, count, seed=0)
+    return np.asarray(points, float), np.asarray(mesh.face_normals)[face] * np.sign(mesh.volume)
+
+
 def corrupted(points, normals, path: Path, noise: float):
     """issue 30's noisy cloud of ``points`` (robust.corrupt) and each noisy point's reference normal."""
     from scipy.spatial import cKDTree
@@ -114,6 +134,14 @@ def compare(estimated, reference) -> dict:
             "flip": float(np.mean(cos[right] < 0)) if right.any() else float("nan")}
 
 
+def _clouds(args):
+    """(name, file, clean points, their normals, faces, N or None) per row: each shape once, or
+    once per ``--samples`` N."""
+    for name, path, clean, clean_normals, faces in shapes(args.only, args.turk, args.meshes, args.noise > 0):
+        for count in args.samples or [None]:
+            yield name, path, clean, clean_normals, faces, count
+
+
 def fit_scores(points, normals, reference) -> dict:
     result = ipfit.fit_adaptive(points, normals, rng=0, outliers="none")
     q = quality(result.polynomial, reference)
@@ -131,17 +159,30 @@ def main(argv=None) -> None:
     parser.add_argument("--wide", action="store_true", help="also the estimate with the noisy-data path forced")
     parser.add_argument("--known-noise", action="store_true",
                         help="also the estimate given the outlier score's noise scale, as fit_adaptive makes it")
+    parser.add_argument("--samples", type=int, nargs="*", default=[],
+                        help="N points drawn on each mesh's surface instead of its vertices (a row per N)")
     args = parser.parse_args(argv)
+    if args.samples and args.noise:
+        parser.error("--samples draws clean points on the surface: not with --noise")
     cols = ["cos10", "cos25", "cos50", "cos75", "off60", "flip", "s"] + (["flip wide"] if args.wide else []) + \
         (["off60 σ", "flip σ"] if args.known_noise else [])
     fits = ("mesh", "est") + (("wide",) if args.wide else ()) + (("σ",) if args.known_noise else ())
     fit_cols = [f"{key} {label}" for label in fits for key in ("F", "P", "R", "deg")]
     header = ["shape", "N"] + cols + (fit_cols if args.fit else [])
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    rows = []
-    for name, path, clean, clean_normals, faces in shapes(args.only, args.turk, args.meshes, args.noise > 0):
-        points, mesh_normals = (clean, clean_normals) if args.noise == 0 else \
-            corrupted(clean, clean_normals, path, args.noise)
+    rows, skipped = [], []
+    for name, path, clean, clean_normals, faces, count in _clouds(args):
+        if count is None:
+            points, mesh_normals = (clean, clean_normals) if args.noise == 0 else \
+                corrupted(clean, clean_normals, path, args.noise)
+        else:
+            drawn = surface_samples(clean, faces, count)
+            if drawn is None:
+                if name not in skipped:
+                    skipped.append(name)
+                    print(f"{name}: faces not consistently wound: left out", flush=True)
+                continue
+            points, mesh_normals = drawn
         # an unreferenced vertex has no normal: no reference for it (or for a noisy point nearest it)
         referenced = np.linalg.norm(mesh_normals, axis=1) > 0
         points, mesh_normals = points[referenced], mesh_normals[referenced]
@@ -193,12 +234,15 @@ def main(argv=None) -> None:
                   "whose reference normal is zero (unreferenced vertices) are left out. Shapes: "
                   "`../shared/data/turk-dev` and the meshes named (for `../common-3d-test-models`, see "
                   "docs/robust-external.md).")
+        what = ("Each row: one shape's surface drawn at N points (the reference: each point's face's outward "
+                "normal), their estimated normals against the mesh's." if args.samples else
+                "Each row: one shape's bare vertices" + (f" with issue 30's noise of σ = {args.noise:g} × the "
+                "box diagonal" if args.noise else "") + ", their estimated normals against the mesh's.")
+        left = f" Left out (faces not consistently wound): {', '.join(skipped)}." if skipped else ""
         head = ["# Estimated normals against the meshes' (issue 30)", "",
                 f"Generated by `{command}` on {date.today().isoformat()} ({platform.machine()}, "
                 f"{platform.processor() or 'cpu'}; Python {platform.python_version()}); fits with seed 0. "
-                "Each row: one shape's bare vertices" + (f" with issue 30's noise of σ = {args.noise:g} × the "
-                "box diagonal" if args.noise else "") + ", their estimated normals against the mesh's.", "",
-                legend, ""]
+                + what + left, "", legend, ""]
         args.out.write_text("\n".join(head) + "\n" + text + "\n", encoding="utf-8")
 
 
