@@ -36,6 +36,11 @@ from ._utils.validation import as_faces, as_matching, as_normals, as_points, as_
 __all__ = ["Cloud", "as_cloud"]
 
 
+#: point_spacing_at computes the spacings it is asked for alone while they are fewer than this
+#: share (1 in _FEW_SPACINGS) of the cloud's points; more, and every point's is computed and kept.
+_FEW_SPACINGS = 8
+
+
 def _read_only(arr: NDArray) -> NDArray:
     # A view, so that the caller's own array stays writable and nothing is copied: for arrays
     # the cloud owns, or that live no longer than a transient cloud (as_cloud).
@@ -216,25 +221,25 @@ class Cloud:
     def point_spacing(self, k: int = 1) -> NDArray[np.float64]:
         """Each point's distance to its ``k``-th nearest other point (read-only; 0 for a
         repeated point when ``k`` = 1, and for every point of a cloud of at most ``k`` points)."""
-        def compute() -> NDArray[np.float64]:
-            if len(self) <= k:
-                return _read_only(np.zeros(len(self)))
-            return _read_only(self.kdtree.query(self.points, k=[k + 1], workers=-1)[0][:, 0])
-
-        return self.derived("point_spacing", k, compute)
+        return self.derived("point_spacing", k, lambda: _read_only(self._spacing_of(self.points, k)))
 
     def point_spacing_at(self, index: NDArray[np.intp], k: int = 1) -> NDArray[np.float64]:
-        """``point_spacing(k)[index]``, computed for those points alone unless the cloud already
-        holds every point's (a big cloud measured once needs a few of them, not all)."""
+        """``point_spacing(k)[index]``, computed for those points alone while they are a small
+        share of the cloud and it does not hold every point's yet (a big cloud measured once needs
+        a few of them); otherwise every point's, kept for the next call."""
         index = np.asarray(index, dtype=np.intp)
         with self._lock:
             every = self._derived.get(("point_spacing", k))
-        if every is not None:
-            return every[index]
-        if len(self) <= k:
-            return np.zeros(len(index))
         at, back = np.unique(index, return_inverse=True)
-        return self.kdtree.query(self.points[at], k=[k + 1], workers=-1)[0][:, 0][back.ravel()]
+        if every is None and len(at) * _FEW_SPACINGS < len(self):
+            return self._spacing_of(self.points[at], k)[back.ravel()]
+        return self.point_spacing(k)[index]
+
+    def _spacing_of(self, query: NDArray[np.float64], k: int) -> NDArray[np.float64]:
+        """The distance of each of ``query`` (points of this cloud) to its ``k``-th nearest other point."""
+        if len(self) <= k:
+            return np.zeros(len(query))
+        return self.kdtree.query(query, k=[k + 1], workers=-1)[0][:, 0]
 
     @property
     def dim(self) -> int:
