@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["row_norms", "unit_rows", "unit_rows_mask"]
+__all__ = ["row_norms", "unique_rows", "unit_rows", "unit_rows_mask"]
 
 
 def row_norms(v: ArrayLike) -> NDArray[np.float64]:
@@ -68,3 +68,38 @@ def unit_rows(v: ArrayLike) -> NDArray[np.float64]:
     if np.all(np.isfinite(length)) and (length.size == 0 or length.max() < 1e150):
         return a / np.where(length > 0, length, 1.0)
     return unit_rows_mask(a)[0]
+
+
+def unique_rows(a: ArrayLike) -> tuple[NDArray, NDArray[np.intp], NDArray[np.intp], NDArray[np.intp]]:
+    """The distinct rows of a 2-D array in lexicographic order (first column first), with the
+    index of each one's first appearance, each row's index among them, and their counts.
+
+    The same as ``np.unique(a, axis=0, return_index=True, return_inverse=True,
+    return_counts=True)`` for arrays without NaN, where rows equal as numbers (0.0 and -0.0)
+    count as one. numpy sorts the rows as structured records; here the first column is sorted
+    and only rows that tie on it are sorted by the others, about 10 times faster on a million
+    scanned points (whose first coordinates rarely tie).
+
+    >>> u, first, inverse, counts = unique_rows([[1, 0], [0, 5], [1, 0]])
+    >>> u.tolist(), first.tolist(), inverse.tolist(), counts.tolist()
+    ([[0, 5], [1, 0]], [1, 0], [1, 0, 1], [1, 2])
+    """
+    x = np.asarray(a)
+    # stable sorts throughout: the first of equal rows is their first appearance
+    order = np.argsort(x[:, 0], kind="stable")
+    lead = x[order, 0]
+    tied = np.zeros(len(x), dtype=bool)
+    tied[1:] = lead[1:] == lead[:-1]
+    tied[:-1] |= tied[1:]
+    if x.shape[1] > 1 and tied.any():
+        at = np.flatnonzero(tied)
+        run = np.cumsum(np.r_[True, lead[at[1:]] != lead[at[:-1]]])  # one number per tie
+        rows = x[order[at]]
+        order[at] = order[at][np.lexsort((*rows[:, 1:].T[::-1], run))]
+    ranked = x[order]
+    starts = np.ones(len(x), dtype=bool)
+    starts[1:] = (ranked[1:] != ranked[:-1]).any(axis=1)
+    inverse = np.empty(len(x), dtype=np.intp)
+    inverse[order] = np.cumsum(starts) - 1
+    counts = np.diff(np.append(np.flatnonzero(starts), len(x)))
+    return ranked[starts], order[starts], inverse, counts

@@ -37,7 +37,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
-from .._utils.numeric import unit_rows_mask
+from .._utils.numeric import unique_rows, unit_rows_mask
 from .._utils.validation import as_faces, as_points, check_positive, error
 
 __all__ = ["Merged", "merge_duplicates", "face_normals", "vertex_normals_from_faces", "fill_missing_normals",
@@ -74,8 +74,7 @@ def merge_duplicates(points: ArrayLike, normals: ArrayLike | None = None) -> Mer
     """
     pts = np.asarray(points, dtype=np.float64)
     key = pts + 0.0  # −0.0 → 0.0: the same position must give the same key
-    _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
-    inverse = inverse.reshape(-1)
+    _, first, inverse, _ = unique_rows(key)
     if len(first) == len(pts):
         nrm = None if normals is None else unit_rows_mask(normals)[0]
         return Merged(pts, nrm, np.arange(len(pts)))

@@ -35,9 +35,10 @@ def point_spacing(points: ArrayLike | Cloud, k: int = 1) -> NDArray[np.float64]:
     return cloud.point_spacing(check_int(k, "k", minimum=1)).copy()  # a copy: the cloud's stays read-only
 
 
-def _occupied(keys_of, size: float) -> tuple[int, NDArray[np.int64]]:
-    _, first = np.unique(keys_of(size), return_index=True)
-    return len(first), first
+def _occupied(keys_of, size: float) -> int:
+    keys = keys_of(size)
+    keys.sort()
+    return int(np.count_nonzero(keys[1:] != keys[:-1])) + int(len(keys) > 0)
 
 
 def spread_subsample(points: ArrayLike | Cloud, n: int, *, rng=0) -> NDArray[np.int64]:
@@ -83,18 +84,19 @@ def spread_subsample(points: ArrayLike | Cloud, n: int, *, rng=0) -> NDArray[np.
     # same voxels are occupied), and applied to all points once.
     subset = 20 * n if total > 20 * n else None
     small, large = extent / (4.0 * n) ** (1 / pts.shape[1]) / 4.0, extent
-    count, first = _occupied(lambda size: keys_of(size, subset), small)
+    count = _occupied(lambda size: keys_of(size, subset), small)
     for _ in range(60):
         if n <= count <= 1.1 * n or large / small < 1.0001:
             break
         mid = np.sqrt(small * large)
-        mid_count, mid_first = _occupied(lambda size: keys_of(size, subset), mid)
+        mid_count = _occupied(lambda size: keys_of(size, subset), mid)
         if mid_count >= n:
-            small, count, first = mid, mid_count, mid_first
+            small, count = mid, mid_count
         else:
             large = mid
-    if subset is not None:
-        count, first = _occupied(keys_of, small)
+    # the bisection only counts voxels (a sort); which point stands for each: at the size found
+    _, first = np.unique(keys_of(small), return_index=True)
+    count = len(first)
     chosen = first if count <= n else gen.choice(first, n, replace=False)
     if len(chosen) < n:
         rest = np.setdiff1d(np.arange(total), chosen)

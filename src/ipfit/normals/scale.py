@@ -14,6 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
+from .._utils.numeric import unique_rows
 from .local import DEFAULT_K, argmax_per_group, blocks, flatness_of, neighbours, pca
 from .orient import orient_graph
 
@@ -203,8 +204,7 @@ def orient_coarse(points: NDArray, tree: cKDTree, scaled: _Scaled, workers: int)
     fallback = not size > 0
     if not fallback:
         keys = np.floor((centroid - centroid.min(axis=0)) / size).astype(np.int64)
-        _, cell = np.unique(keys, axis=0, return_inverse=True)
-        cell = cell.ravel()
+        cell = unique_rows(keys)[2]
         ncell = int(cell.max()) + 1
         counts = np.bincount(cell, minlength=ncell).astype(float)
         mean = np.stack([np.bincount(cell, centroid[:, j], ncell) for j in range(dim)], axis=1) / counts[:, None]

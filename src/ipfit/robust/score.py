@@ -32,6 +32,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 from scipy.special import ndtri  # scipy.stats costs every command ~1 s of import for two constants
 
+from .._utils.numeric import unique_rows
 from .._utils.validation import as_points, check_int, error
 from ..normals.local import check_workers, standardise
 from .local import fit_local, n_terms
@@ -319,8 +320,7 @@ def score_outliers(points: ArrayLike, *, outliers="auto", k: int | None = None,
     k = DEFAULT_K[dim] if k is None else check_int(k, "k", minimum=n_terms(dim) + 2)
     workers = check_workers(workers)
     standard, unit = _standardised(pts)
-    unique, inverse, counts = np.unique(standard, axis=0, return_inverse=True, return_counts=True)
-    inverse = inverse.ravel()
+    unique, _, inverse, counts = unique_rows(standard)
     if len(unique) < k + 2:
         raise error("points", f"at least k + 2 = {k + 2} distinct points", f"{len(unique)}",
                     "Pass more points or a smaller k.")

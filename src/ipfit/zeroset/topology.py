@@ -268,8 +268,10 @@ def _euler_per_label(faces: NDArray, labels: NDArray, n: int) -> NDArray[np.int6
     vertex_label[f.ravel()] = np.repeat(labels, 3)
     used = vertex_label[vertex_label >= 0]
     n_vertices = np.bincount(used, minlength=n)
-    edges = np.unique(np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1), axis=0)
-    n_edges = np.bincount(vertex_label[edges[:, 0]], minlength=n)
+    edges = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+    # one integer per edge: a 1D np.unique is many times faster than one of rows
+    first = np.unique(edges[:, 0] * len(vertex_label) + edges[:, 1]) // max(len(vertex_label), 1)
+    n_edges = np.bincount(vertex_label[first], minlength=n)
     return (n_vertices - n_edges + n_faces).astype(np.int64)
 
 
