@@ -431,6 +431,67 @@ def test_noisy_thin_plate_is_fitted(rng):
     assert quality(result.polynomial, dense).f_score > 0.95
 
 
+def finned_sphere(n, thickness, rng):
+    """``n`` points on a unit sphere with a thin fin (1 long, 0.8 wide, ``thickness`` thick) that
+    sticks out along +x, the fin's part inside the sphere left out; their normals, and which
+    points lie on the fin's two large faces (+z, -z)."""
+    lo, hi = np.array([0.9, -0.4, -thickness / 2]), np.array([1.9, 0.4, thickness / 2])
+    fin, fin_normals = plate(4 * n, hi - lo, rng)
+    fin += (lo + hi) / 2
+    outside = np.linalg.norm(fin, axis=1) > 1.0
+    fin, fin_normals = fin[outside], fin_normals[outside]
+    ball = rng.normal(size=(4 * n, 3))
+    ball /= np.linalg.norm(ball, axis=1)[:, None]
+    ball = ball[~np.all((ball >= lo) & (ball <= hi), axis=1)]
+    fin_area = 2 * (0.8 * 0.9 + (0.8 + 0.9) * thickness)  # about: the part outside the sphere
+    n_fin = round(n * fin_area / (fin_area + 4 * np.pi))
+    points = np.vstack([ball[: n - n_fin], fin[:n_fin]])
+    normals = np.vstack([ball[: n - n_fin], fin_normals[:n_fin]])
+    face = np.zeros(n, dtype=int)
+    face[n - n_fin:] = np.where(np.abs(normals[n - n_fin:, 2]) > 0.5, np.sign(normals[n - n_fin:, 2]), 0)
+    return points, normals, face
+
+
+def test_a_noisy_thin_part_seen_as_one_sheet_keeps_its_two_sides(rng):
+    """A fin about 2 σ thick (a bunny's ear at σ = 1 % of the diagonal): the wide neighbourhoods'
+    centroids of both its faces fall on its middle, one sheet of representatives oriented one way,
+    and one face came out inside out as a whole (75-89 % of it flipped, seeds 0-2). Told apart by
+    the winding number, each point takes the side of the sheet it lies on: what is left flipped
+    are the points the noise carried across the middle (about Φ(-1.1) = 14 % at this thickness)."""
+    diagonal = float(np.linalg.norm([2.9, 2.0, 2.0]))
+    sigma = 0.01 * diagonal
+    points, truth, face = finned_sphere(20_000, 2.2 * sigma, rng)
+    noisy = points + rng.normal(scale=sigma, size=points.shape)
+    estimated = estimate_normals(noisy, noise=score_outliers(noisy).noise_scale)
+    for side in (1, -1):
+        assert normal_agreement(estimated[face == side], truth[face == side]).flipped_fraction < 0.3
+    body = points[:, 0] < 0.8
+    assert normal_agreement(estimated[body], truth[body]).flipped_fraction < 0.01
+
+
+def test_one_sheet_sides_tells_a_solid_a_thin_solid_and_a_thin_gap_apart():
+    """The winding number off each representative's sheet: a sphere's surface (0), a disc outside
+    it seen as one sheet (+1: a thin solid, the shape on neither side) and a disc inside it (-1:
+    a thin gap, the shape on both sides), whichever way the discs are oriented."""
+    from ipfit.normals.scale import _one_sheet_sides
+
+    golden = np.pi * (3.0 - np.sqrt(5.0))
+    k = np.arange(3000) + 0.5
+    z = 1 - 2 * k / 3000
+    sphere = np.column_stack([np.sqrt(1 - z * z) * np.cos(golden * k), np.sqrt(1 - z * z) * np.sin(golden * k), z])
+    grid = np.stack(np.meshgrid(np.linspace(-0.3, 0.3, 15), np.linspace(-0.3, 0.3, 15)), -1).reshape(-1, 2)
+    size = 0.05
+    for flip in (1.0, -1.0):
+        outside = np.column_stack([np.full(len(grid), 1.6), grid])  # a disc across the x axis at x = 1.6
+        inside = np.column_stack([grid, np.zeros(len(grid))])  # a disc at z = 0 through the middle
+        points = np.vstack([sphere, outside, inside])
+        normals = np.vstack([sphere, np.tile([flip, 0, 0], (len(grid), 1)), np.tile([0, 0, flip], (len(grid), 1))])
+        sides = _one_sheet_sides(points, normals, size)
+        assert np.mean(sides[:3000] == 0) > 0.99
+        assert np.mean(sides[3000:3000 + len(grid)] == 1) > 0.9
+        assert np.mean(sides[3000 + len(grid):] == -1) > 0.9
+
+
 def test_noisy_result_does_not_depend_on_point_order(rng):
     clean, _ = bundled.load_dataset("boot")
     noisy, _ = add_noise(clean, 0.01, rng)

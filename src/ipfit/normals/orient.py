@@ -243,16 +243,38 @@ def _winding_block(at: NDArray, oriented: NDArray, behind: NDArray, ahead: NDArr
                    lift: NDArray, base: NDArray, total: NDArray) -> None:
     """Add n_j·(p_j − q)/|p_j − q|³ at the points behind minus at those in front of ``at``, in place."""
     for side, step in ((1.0, behind), (-1.0, ahead)):
-        q = at + step[:, None] * oriented
-        # by matrix products: |q|² − 2 q·p_j + |p_j|² (+ the disc's softening, in base)
-        r2 = q @ (-2.0 * src.T)
-        r2 += base
-        r2 += np.einsum("ij,ij->i", q, q)[:, None]
-        np.maximum(r2, np.finfo(float).tiny, out=r2)
-        along = q @ (-side * nrm.T)
-        along += side * lift
-        along /= r2 * np.sqrt(r2)
-        total += along
+        _winding_terms(at + step[:, None] * oriented, src, nrm, lift, base, side, total)
+
+
+def _winding_terms(q: NDArray, src: NDArray, nrm: NDArray, lift: NDArray, base: NDArray, side: float,
+                   total: NDArray) -> None:
+    """Add ``side`` × n_j·(p_j − q)/|p_j − q|³ of every source j at every query q to ``total``, in place."""
+    # by matrix products: |q|² − 2 q·p_j + |p_j|² (+ the disc's softening, in base)
+    r2 = q @ (-2.0 * src.T)
+    r2 += base
+    r2 += np.einsum("ij,ij->i", q, q)[:, None]
+    np.maximum(r2, np.finfo(float).tiny, out=r2)
+    along = q @ (-side * nrm.T)
+    along += side * lift
+    along /= r2 * np.sqrt(r2)
+    total += along
+
+
+@np.errstate(over="ignore", invalid="ignore", divide="ignore")
+def winding_numbers(queries: NDArray, src: NDArray, nrm: NDArray, soft: float) -> NDArray[np.float64]:
+    """Σ_j n_j·(p_j − q)/(4π |p_j − q|³) at every query q: the generalized winding number of the
+    oriented sources (Barill et al. 2018) up to their common area, each source a disc of radius
+    √``soft`` (no blow-up next to it). For evenly spread sources the area is one number, which a
+    caller can measure as the jump across the surface (the winding number rises by 1 through it)."""
+    lift = np.einsum("ij,ij->i", nrm, src)
+    base = np.einsum("ij,ij->i", src, src) + soft
+    out = np.empty(len(queries))
+    for part in blocks(len(queries), len(src)):
+        total = np.zeros((part.stop - part.start, len(src)))
+        _winding_terms(queries[part], src, nrm, lift, base, 1.0, total)
+        total[~np.isfinite(total)] = 0.0
+        out[part] = total.sum(axis=1) / (4.0 * np.pi)
+    return out
 
 
 # Clouds up to _HULL_ALL points take the convex hull of all their points for anchors; larger ones
