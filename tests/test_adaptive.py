@@ -217,9 +217,10 @@ def test_auto_search_settings_depend_on_the_dimension():
     assert result.info["search_points_used"] == 1000 and result.info["polish_iterations"] == 300
 
 
-def test_a_big_cloud_is_fitted_on_an_even_subsample_then_on_every_point(seed):
+def test_a_big_cloud_is_fitted_on_an_even_subsample_then_measured_on_every_point(seed):
     # SearchOptions.fit_points: the degree loop runs on that many points spread evenly, the
-    # selected degree is polished and measured on every point (in the whole cloud's coordinates).
+    # selected degree is measured on every point (in the whole cloud's coordinates), its
+    # polynomial the subsample's.
     from ipfit.zeroset.quality import quality
 
     shape = synthetic.torus(8000, rng=np.random.default_rng(seed))
@@ -237,6 +238,12 @@ def test_a_big_cloud_is_fitted_on_an_even_subsample_then_on_every_point(seed):
     assert chosen.quality.f_score == pytest.approx(on_all.f_score, abs=1e-12) and on_all.f_score > 0.999
     assert np.max(np.abs(res.polynomial.residuals(shape.points))) < 0.01  # the torus (R = 1, r = 0.4)
     assert ipfit.PAPER.fit_points is None  # the paper fits every degree on every point
+    # the polynomial is the subsample's fit (not polished again), written in the whole cloud's terms
+    pick = ipfit.geometry.sampling.spread_subsample(shape.points, 2000)
+    alone = fit_adaptive(shape.points[pick], shape.normals[pick], rng=seed, max_degree=4).polynomial
+    x = np.random.default_rng(1).uniform(-1.5, 1.5, size=(300, 3))
+    a, b = res.polynomial(x), alone(x)
+    assert np.max(np.abs(a - b * (a @ b) / (b @ b))) < 1e-8 * np.max(np.abs(a))
 
 
 def test_fit_points_is_checked():
@@ -279,7 +286,7 @@ def test_an_interrupt_on_every_point_keeps_the_subsample_fit(seed):
     res = fit_adaptive(shape.points, shape.normals, rng=seed, options=ipfit.RECOMMENDED.replace(fit_points=1000),
                        progress=interrupting)
     assert res.reason == "interrupted" and not res.success
-    assert "interrupted while polishing degree 4 on every point" in res.message
+    assert "interrupted while measuring degree 4 on every point" in res.message
     assert res.selected_degree == 4 and res.at_degree(4).quality.f_score > 0.99  # measured on the subsample
 
 

@@ -284,7 +284,7 @@ def test_axis_aligned_lines_and_planes_are_fitted(tmp_path, kind):
 
 def test_a_big_cloud_says_it_fitted_the_degrees_on_a_subsample(tmp_path):
     # More than SearchOptions.fit_points (50,000) points: the degrees on 50,000 spread evenly,
-    # the selected one on every point, and the terminal and the result say so.
+    # the selected one measured on every point, and the terminal and the result say so.
     from ipfit.datasets import synthetic
 
     torus = synthetic.torus(60_000, rng=np.random.default_rng(0))
@@ -293,7 +293,7 @@ def test_a_big_cloud_says_it_fitted_the_degrees_on_a_subsample(tmp_path):
     out = subprocess.run([sys.executable, "-m", "ipfit.cli", "fit", str(src), "-o", str(tmp_path / "t"),
                           "--no-picture", "--no-zero-set"], capture_output=True, text=True)
     assert out.returncode == 0, out.stderr
-    assert ("degree 4: polishing and measuring on all 60,000 points (the degrees were fitted on 50,000 of them "
+    assert ("degree 4: measuring on all 60,000 points (the degrees were fitted on 50,000 of them "
             "spread evenly)") in out.stderr.splitlines()
     result = json.loads((tmp_path / "t.json").read_text())
     assert result["selected_degree"] == 4 and result["quality"]["f_score"] > 0.999

@@ -72,7 +72,7 @@ class Progress:
         elif kind == "every_point":
             self._close_bar()
             self._degree, self._stage = event["degree"], None
-            self._line(f"degree {event['degree']}: polishing and measuring on all {event['n_points']:,} points "
+            self._line(f"degree {event['degree']}: measuring on all {event['n_points']:,} points "
                        f"(the degrees were fitted on {event['fit_points']:,} of them spread evenly)")
         elif kind in ("weights_variant", "normals_variant", "reorient"):
             self._close_bar()

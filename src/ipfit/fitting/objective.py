@@ -29,7 +29,8 @@ other), and numpy and SciPy each bundle their own OpenBLAS whose idle threads co
 Without threadpoolctl the blocks run one after the other with BLAS's own threads. The
 single-member pass of the polish (:meth:`Objective.value_and_grad`, no BLAS) runs on the calling
 thread while the design is kept, and shares its blocks between the worker threads when the
-design is rebuilt at every evaluation (a big cloud's step on every point).
+design is rebuilt at every evaluation (a cloud of more than a few hundred thousand points
+fitted on all of them, as ``SearchOptions(fit_points=None)`` asks).
 
 Points where ∇f = 0: the cosine is 0 there and the Taubin term is :data:`TAUBIN_CAP` (0 if
 f = 0 too, a singular point on the curve). Each point's Taubin term is capped at

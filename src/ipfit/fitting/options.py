@@ -171,9 +171,9 @@ class SearchOptions:
     fit_points : int or None, default 50,000
         :func:`ipfit.fit_adaptive` on a cloud of more points runs its degree loop (every
         degree's search, polish, measurement and repair) on this many of them spread evenly
-        (:func:`ipfit.geometry.sampling.spread_subsample`, fixed seed), then polishes the
-        selected degree on every point and measures it there (a mesh, whose faces every degree
-        is measured against, always on every vertex). None: every degree on every point (the
+        (:func:`ipfit.geometry.sampling.spread_subsample`, fixed seed), then measures the
+        selected degree on every point (a mesh, whose faces every degree is measured against,
+        always on every vertex). None: every degree on every point (the
         paper). 50,000 points sample a shape far more densely than a polynomial of
         the maximum degree resolves (165 coefficients in 3D), and a degree's full-cloud passes
         (ranking, measures, quality) were most of a million-point fit's time (docs/peers.md).
