@@ -944,8 +944,9 @@ def _on_every_point(cloud: Cloud, unit, entry: DegreeResult, delta: float, measu
     moved = dataclasses.replace(entry.polynomial, coefficients=_renormalised(entry.polynomial, norm),
                                 normalization=norm)
     poly, m, q = _measure(moved, cloud, unit, delta, measured, ordered_contour)
-    return dataclasses.replace(entry, x=poly.coefficients, fun=float(m.distance), polynomial=poly, measures=m,
-                               quality=q, seconds=entry.seconds + time.perf_counter() - start)
+    # `fun` stays what the method minimised (on the subsample); the measures are every point's
+    return dataclasses.replace(entry, x=poly.coefficients, polynomial=poly, measures=m, quality=q,
+                               seconds=entry.seconds + time.perf_counter() - start)
 
 
 def _renormalised(poly: ImplicitPolynomial, norm: Normalization) -> NDArray[np.float64]:
