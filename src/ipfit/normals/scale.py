@@ -77,6 +77,8 @@ _CELL = 3.0  # the representatives' grid: the neighbourhoods' median radius over
 # ½), of a thin gap within _ONE_SHEET of 1 (see _one_sheet_sides).
 _SHEET_STEP = 1.0
 _ONE_SHEET = 0.25
+# ... and of a patch of them: at least half of its _PATCH nearest representatives are one too.
+_PATCH = 6
 # Sources of those winding numbers: at most this many representatives, spread.
 _WINDING_SOURCES = 10_000
 
@@ -267,5 +269,9 @@ def _one_sheet_sides(coarse: NDArray, oriented: NDArray, size: float) -> NDArray
     sheet = np.zeros(len(coarse))
     sheet[np.abs(level) < _ONE_SHEET] = outward
     sheet[level > 1.0 - _ONE_SHEET] = -outward
+    # a thin part is a patch of the sheet, not a lone representative (a hole's rim, a crease)
+    if len(coarse) > _PATCH:
+        near = cKDTree(coarse).query(coarse, k=_PATCH + 1)[1][:, 1:]
+        sheet[(sheet[near] == sheet[:, None]).sum(axis=1) < _PATCH // 2] = 0.0
     return sheet
 
