@@ -23,7 +23,7 @@ The profiler slows pure-Python code more than compiled or BLAS code, so the shar
 the totals are the profiled run's. ``--million`` adds the bunny's surface sampled to 10⁶ points with
 its face normals (minutes); a cloud of more than ``SearchOptions.fit_points`` points has its
 degrees fitted on a subsample of it, and its last row, "degree g on every point", is the
-selected degree polished and measured on every point. Every number printed (and written with ``--out``) comes from this run.
+selected degree measured on every point. Every number printed (and written with ``--out``) comes from this run.
 """
 
 from __future__ import annotations
