@@ -486,7 +486,7 @@ def test_one_sheet_sides_tells_a_solid_a_thin_solid_and_a_thin_gap_apart():
         inside = np.column_stack([grid, np.zeros(len(grid))])  # a disc at z = 0 through the middle
         points = np.vstack([sphere, outside, inside])
         normals = np.vstack([sphere, np.tile([flip, 0, 0], (len(grid), 1)), np.tile([0, 0, flip], (len(grid), 1))])
-        sides = _one_sheet_sides(points, normals, size)
+        sides = _one_sheet_sides(points, cKDTree(points), normals, size, 1)
         assert np.mean(sides[:3000] == 0) > 0.99
         assert np.mean(sides[3000:3000 + len(grid)] == 1) > 0.9
         assert np.mean(sides[3000 + len(grid):] == -1) > 0.9

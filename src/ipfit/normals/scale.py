@@ -238,13 +238,14 @@ def orient_coarse(points: NDArray, tree: cKDTree, scaled: _Scaled, workers: int)
     weight = 1.0 / (cost + (1e-9 * radius) ** 2) ** 2
     # a representative of a thin part seen as one sheet has the points of both its sides: each
     # takes the side it lies on (outward of a thin solid, inward of a thin gap)
-    sheet = _one_sheet_sides(coarse, oriented, size) if dim == 3 else np.zeros(m)
+    sheet = _one_sheet_sides(coarse, coarse_tree, oriented, size, workers) if dim == 3 else np.zeros(m)
     side = np.where(sheet[near] == 0, 1.0, sheet[near] * np.where(off < 0, -1.0, 1.0))
     vote = (weight * side * np.einsum("ij,ikj->ik", normals, oriented[near])).sum(axis=1)
     return normals * np.where(vote < 0, -1.0, 1.0)[:, None]
 
 
-def _one_sheet_sides(coarse: NDArray, oriented: NDArray, size: float) -> NDArray[np.float64]:
+def _one_sheet_sides(coarse: NDArray, tree: cKDTree, oriented: NDArray, size: float,
+                     workers: int) -> NDArray[np.float64]:
     """Per representative: 0 on the surface of a solid, +1 where the shape lies on neither side
     of its sheet (a thin solid seen as one sheet: its points face away from it), −1 where it lies
     on both (a thin gap: they face it).
@@ -258,8 +259,8 @@ def _one_sheet_sides(coarse: NDArray, oriented: NDArray, size: float) -> NDArray
     """
     sources = spread(coarse, _WINDING_SOURCES)
     step = _SHEET_STEP * size
-    behind = winding_numbers(coarse - step * oriented, coarse[sources], oriented[sources], (size / 2.0) ** 2)
-    ahead = winding_numbers(coarse + step * oriented, coarse[sources], oriented[sources], (size / 2.0) ** 2)
+    off = np.vstack([coarse - step * oriented, coarse + step * oriented])
+    behind, ahead = np.split(winding_numbers(off, coarse[sources], oriented[sources], (size / 2.0) ** 2), 2)
     jump = float(np.median(behind - ahead))  # 1 × the sources' common area, wherever the sheet
     if not jump > 0:
         return np.zeros(len(coarse))
@@ -271,7 +272,7 @@ def _one_sheet_sides(coarse: NDArray, oriented: NDArray, size: float) -> NDArray
     sheet[level > 1.0 - _ONE_SHEET] = -outward
     # a thin part is a patch of the sheet, not a lone representative (a hole's rim, a crease)
     if len(coarse) > _PATCH:
-        near = cKDTree(coarse).query(coarse, k=_PATCH + 1)[1][:, 1:]
+        near = neighbours(tree, _PATCH + 1, workers)[:, 1:]
         sheet[(sheet[near] == sheet[:, None]).sum(axis=1) < _PATCH // 2] = 0.0
     return sheet
 
