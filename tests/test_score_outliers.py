@@ -133,3 +133,41 @@ def test_a_big_cloud_is_scored_against_the_reference_of_a_random_sample(seed, sh
         assert sampled.count == 0 and np.all(sampled.weights == 1.0)
     assert sampled.noise_scale < 0.01 * np.linalg.norm(np.ptp(surface, axis=0))
     assert np.array_equal(score_outliers(cloud[::-1]).score[::-1], sampled.score)  # order-free
+
+
+def test_a_clean_big_cloud_is_decided_on_its_sample_and_scored_when_asked(seed, monkeypatch):
+    # 'auto' on a big cloud whose sample shows no evidence keeps every point without scoring
+    # them all; the scores, asked for later, are those the whole pass gives (a forced
+    # fraction of 0 runs it at once), and the noise scale is the same.
+    from ipfit.robust import score
+
+    rng = np.random.default_rng(seed)
+    cloud = synthetic.torus(6000, rng=rng).points
+    monkeypatch.setattr(score, "_REFERENCE_POINTS", 2500)
+    calls = []
+    whole = score._score
+    monkeypatch.setattr(score, "_score", lambda points, *a: calls.append(len(points)) or whole(points, *a))
+    auto = score_outliers(cloud)
+    assert len(cloud) not in calls  # the weights did not need every point's score
+    assert auto.count == 0 and np.all(auto.weights == 1.0) and auto.inliers.all()
+    forced = score_outliers(cloud, outliers=0.0)
+    np.testing.assert_array_equal(auto.score, forced.score)
+    assert auto.spacing == forced.spacing
+    assert auto.noise_scale == pytest.approx(forced.noise_scale, rel=1e-12)
+    none = score_outliers(cloud, outliers="none")
+    assert np.all(none.weights == 1.0) and none.noise_scale == auto.noise_scale
+    np.testing.assert_array_equal(none.score, auto.score)
+
+
+def test_a_big_cloud_with_one_stray_position_repeated_is_scored_whole(monkeypatch):
+    # A position repeated many times is one distinct point the sample may miss, but it counts
+    # once per copy in the evidence: 400 copies of one stray (6 %) are evidence, and flagged.
+    from ipfit.robust import score
+
+    rng = np.random.default_rng(0)
+    surface = synthetic.torus(6000, rng=rng).points
+    cloud = np.vstack([surface, np.tile([[0.0, 0.0, 1.2]], (400, 1))])
+    monkeypatch.setattr(score, "_REFERENCE_POINTS", 2500)
+    result = score_outliers(cloud)
+    assert not result.inliers[-400:].any()
+    assert result.inliers[:6000].mean() > 0.98

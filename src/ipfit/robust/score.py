@@ -25,7 +25,9 @@ sample. Three steps, each measured on the development data (``experiments/outlie
 from __future__ import annotations
 
 import numbers
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -108,13 +110,15 @@ class OutlierScore:
     inliers : (N,) bool array
         ``weights >= 0.5``.
     score : (N,) array >= 0
-        The outlier score: 1 at the threshold (see the module notes).
+        The outlier score: 1 at the threshold (see the module notes). A big cloud whose weights
+        did not need it (see :func:`score_outliers`) computes it when first asked for.
     noise_scale : float
         The Gaussian σ of the inliers' offsets from the shape, in the points' units. On clean
         data, the shape's own roughness at the scale of k samples (pixel steps, facets).
     spacing : float
         The median distance from an inlier to its nearest other inlier (distinct positions;
-        the inliers the data say, score <= 1, whatever ``outliers`` forces).
+        the inliers the data say, score <= 1, whatever ``outliers`` forces); computed with
+        ``score``.
     outlier_share : float
         The share of points that are not inliers.
     mode : 'auto', 'none' or float
@@ -125,16 +129,29 @@ class OutlierScore:
 
     weights: NDArray[np.float64]
     inliers: NDArray[np.bool_]
-    score: NDArray[np.float64]
     noise_scale: float
-    spacing: float
-    mode: str | float = "auto"
+    mode: str | float
+    # () -> (score, spacing): the scores of every point and the inliers' spacing, when asked for
+    _measure: Callable[[], tuple[NDArray[np.float64], float]] = field(repr=False)
     outlier_share: float = field(init=False)
 
     def __post_init__(self):
-        for name in ("weights", "inliers", "score"):
+        for name in ("weights", "inliers"):
             _frozen(getattr(self, name))
         object.__setattr__(self, "outlier_share", float(1.0 - self.inliers.mean()))
+
+    @cached_property
+    def _measured(self) -> tuple[NDArray[np.float64], float]:
+        score, spacing = self._measure()
+        return _frozen(score), spacing
+
+    @property
+    def score(self) -> NDArray[np.float64]:
+        return self._measured[0]
+
+    @property
+    def spacing(self) -> float:
+        return self._measured[1]
 
     @property
     def count(self) -> int:
@@ -240,17 +257,43 @@ def _score(points: NDArray, counts: NDArray, ref: NDArray[np.bool_], k: int, rea
     return np.maximum(fit.residual / scale / _OFFSET_CUT, fit.offset / _BEYOND_CUT), sigma, fit.widest
 
 
-def _big(points: NDArray, counts: NDArray, k: int, workers: int):
-    """Scores and noise scale of more than :data:`_REFERENCE_POINTS` distinct points: the rounds
-    run on a random sample of that many (fixed seed; a random one keeps the density contrast
-    between samples and strays that the seed needs), then every point is scored once against
-    the reference they settled on."""
+def _big(points: NDArray, counts: NDArray, k: int, workers: int, mode: str | float):
+    """Scores and noise scale of more than :data:`_REFERENCE_POINTS` distinct points.
+
+    The rounds run on a random sample of that many (fixed seed; a random one keeps the density
+    contrast between samples and strays that the seed needs); every point is then scored once
+    against the reference they settled on. The scores of every point are needed now only for a
+    forced fraction, or for 'auto' when strays may be evidence: the sample, and every repeated
+    position (which may weigh heavily), are scored first, and under half the evidence share
+    among them says 'auto' keeps every point. A point's score does not depend on the other
+    queries, so the sample's are those of the whole pass. Returns every point's scores or
+    ``None``, the noise scale, and a function giving every point's scores.
+    """
     pick = np.sort(np.random.default_rng(0).choice(len(points), _REFERENCE_POINTS, replace=False))
     _, _, kept, reach = _rounds(points[pick], counts[pick], k, workers)
     ref = np.zeros(len(points), dtype=bool)
     ref[pick[kept]] = True
-    score, sigma, _ = _score(points, counts, ref, k, reach, workers)
-    return score, sigma
+
+    def every() -> NDArray[np.float64]:
+        return _score(points, counts, ref, k, reach, workers)[0]
+
+    if not isinstance(mode, str):
+        score, sigma, _ = _score(points, counts, ref, k, reach, workers)
+        return score, sigma, every
+    single = counts == 1
+    probe = np.union1d(pick, np.flatnonzero(~single))
+    probe_score, sigma, _ = _score(points[probe], counts[probe], ref[probe], k, reach, workers)
+    if mode == "none":
+        return None, sigma, every
+    beyond = probe_score > _EVIDENCE_SCORE
+    sampled = single[probe]
+    # the singletons' share estimated from the sample's, the repeated positions' counted
+    singles = beyond[sampled].mean() if sampled.any() else 1.0
+    mass = singles * np.count_nonzero(single) + (counts[probe] * (beyond & ~sampled)).sum()
+    if mass < 0.5 * _EVIDENCE_SHARE * counts.sum():
+        return None, sigma, every
+    score = every()
+    return score, sigma, every
 
 
 def _gaussian_scale(residuals: NDArray, counts: NDArray) -> float:
@@ -285,6 +328,10 @@ def score_outliers(points: ArrayLike, *, outliers="auto", k: int | None = None,
     surfaces are found on a random 131,072 of them (fixed seed) and every point is scored once
     against them: the result still does not depend on the order, but which points that sample
     holds, and so a score near the threshold, can change with the position, orientation or units.
+    There 'auto' decides on the sample whether strays are evidence, when the sample is clear
+    (under 1 % of it beyond 3: the whole cloud's share is then below 2 % but with a
+    probability under 1e-100), and ``score`` and ``spacing``, which the weights then do not
+    need, are computed when first asked for (3-4 s of a 10⁶-point scan's fit).
 
     Parameters
     ----------
@@ -324,14 +371,27 @@ def score_outliers(points: ArrayLike, *, outliers="auto", k: int | None = None,
     if len(unique) < k + 2:
         raise error("points", f"at least k + 2 = {k + 2} distinct points", f"{len(unique)}",
                     "Pass more points or a smaller k.")
-    score_u, sigma = _rounds(unique, counts, k, workers)[:2] if len(unique) <= _REFERENCE_POINTS else \
-        _big(unique, counts, k, workers)
-    # the spacing of the points the data say are inliers, whatever `outliers` forces
-    inner = unique[score_u <= 1.0]
-    spacing = float(np.median(cKDTree(inner).query(inner, k=2, workers=workers)[0][:, 1])) if len(inner) > 1 else 0.0
-    score = score_u[inverse]
-    weights = np.ones(len(pts)) if mode == "none" else _weights(score, standard, mode)
-    return OutlierScore(weights, weights >= 0.5, score, sigma * unit, spacing * unit, mode)
+    if len(unique) <= _REFERENCE_POINTS:
+        score_u, sigma = _rounds(unique, counts, k, workers)[:2]
+        every = None
+    else:
+        score_u, sigma, every = _big(unique, counts, k, workers, mode)
+
+    def measure(score_u: NDArray | None = score_u) -> tuple[NDArray[np.float64], float]:
+        if score_u is None:
+            assert every is not None
+            score_u = every()
+        # the spacing of the points the data say are inliers, whatever `outliers` forces
+        inner = unique[score_u <= 1.0]
+        spacing = float(np.median(cKDTree(inner).query(inner, k=2, workers=workers)[0][:, 1])) if len(inner) > 1 \
+            else 0.0
+        return score_u[inverse], spacing * unit
+
+    if score_u is None or mode == "none":
+        weights = np.ones(len(pts))
+    else:
+        weights = _weights(score_u[inverse], standard, mode)
+    return OutlierScore(weights, weights >= 0.5, sigma * unit, mode, measure)
 
 
 def _weights(score: NDArray, standard: NDArray, mode: str | float) -> NDArray[np.float64]:
