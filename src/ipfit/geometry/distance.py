@@ -18,6 +18,8 @@ from typing import NamedTuple, cast
 import numpy as np
 from numpy.typing import NDArray
 
+from .._utils.threads import default_threads, in_parts
+
 __all__ = ["Samples", "sample_segments", "sample_triangles", "Target", "points_target", "contour_target",
            "contour_pieces", "mesh_target", "data_target", "query_workers", "DEFAULT_TAU_FRACTION",
            "DEFAULT_MAX_SAMPLES", "BREAK_RATIO"]
@@ -136,8 +138,6 @@ _LEAF_SIZE = 64
 
 def query_workers(n_queries: int) -> int:
     """k-d tree worker threads for a call of ``n_queries`` queries."""
-    from .._utils.threads import default_threads
-
     return default_threads() if n_queries >= _THREADED_QUERIES else 1
 
 
@@ -214,8 +214,14 @@ class Target:
         from ._distance_kernels import nearest_candidates
 
         a, b, *c = self.corners
-        return d, nearest_candidates(query, idx, len(self.samples.points), self.samples.elements, a, b,
-                                     c[0] if c else a, d[:, 0], self.kind == "triangles")
+        out = np.empty(len(query))
+
+        def run(rows: slice) -> None:
+            out[rows] = nearest_candidates(query[rows], idx[rows], len(self.samples.points), self.samples.elements,
+                                           a, b, c[0] if c else a, d[rows, 0], self.kind == "triangles")
+
+        in_parts(run, len(query), query_workers(len(query)), _THREADED_QUERIES)
+        return d, out
 
     def distance(self, query: NDArray) -> NDArray:
         from scipy.spatial import cKDTree

@@ -16,15 +16,13 @@ along the tangent of 4k points).
 
 from __future__ import annotations
 
-from concurrent.futures import ThreadPoolExecutor
-from itertools import pairwise
 from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
-from .._utils.threads import default_threads
+from .._utils.threads import default_threads, in_parts
 
 # The frame's neighbourhood: up to this many times k reference points, those within the
 # caller's reach (and always the k nearest).
@@ -143,11 +141,4 @@ def _fit_frames(ref: NDArray, query: NDArray, dist: NDArray, wide: NDArray[np.in
         quadric_frames(ref, query[at], dist[at], wide[at], k, _TUKEY, _IRLS_STEPS, _LEVERAGE_CAP,
                        residual[at], offset[at], extent[at], chosen[at])
 
-    n = len(query)
-    parts = max(1, min(threads, n // _MIN_PART))
-    if parts == 1:
-        run(slice(0, n))
-        return
-    edges = np.linspace(0, n, parts + 1).astype(int)
-    with ThreadPoolExecutor(parts) as pool:
-        list(pool.map(run, [slice(a, b) for a, b in pairwise(edges)]))
+    in_parts(run, len(query), threads, _MIN_PART)
