@@ -340,6 +340,30 @@ def test_a_kept_design_runs_the_polish_pass_on_one_thread(rng):
     assert one[0] == two[0] and np.array_equal(one[1], two[1])
 
 
+def test_a_kept_design_split_between_threads_sums_the_same_to_rounding(rng, monkeypatch):
+    # split=True (the final polish, which runs alone) shares a kept design's blocks between the
+    # threads: one thread's sums to rounding, the same on every call; one thread or a single
+    # block is the plain pass, to the bit.
+    from ipfit.fitting.farfield import FarFieldTerm
+
+    shape = synthetic.torus(3000, rng=rng)
+    weights = rng.uniform(0.2, 1.0, len(shape.points))
+    a = shape.polynomial.coefficients + 0.05 * rng.normal(size=35)
+    far = [FarFieldTerm.from_data(shape.points, shape.normals, 4, weight=0.5)]
+    plain = Objective(shape.points, shape.normals, 4, weights=weights, terms=far, threads=1).value_and_grad(a)
+    monkeypatch.setattr(objective_module, "_SINGLE_ROWS", 400)  # 8 blocks of points, then the far rows
+    two = Objective(shape.points, shape.normals, 4, weights=weights, terms=far, threads=2)
+    assert two._m is not None and len(two._member_jobs()) == 9
+    value, grad = two.value_and_grad(a, split=True)
+    assert value == pytest.approx(plain[0], rel=1e-13)
+    np.testing.assert_allclose(grad, plain[1], rtol=1e-10, atol=1e-13 * np.abs(plain[1]).max())
+    again = two.value_and_grad(a, split=True)
+    assert again[0] == value and np.array_equal(again[1], grad)
+    one = Objective(shape.points, shape.normals, 4, weights=weights, terms=far, threads=1)
+    alone = one.value_and_grad(a, split=True)
+    assert alone[0] == one.value_and_grad(a)[0] and np.array_equal(alone[1], one.value_and_grad(a)[1])
+
+
 @pytest.mark.slow
 def test_a_million_points_need_no_full_design_matrix(rng):
     import tracemalloc

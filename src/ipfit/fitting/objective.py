@@ -486,18 +486,24 @@ class Objective:
         return self._agreement
 
     # -- single member with gradient -------------------------------------------------------------
-    def value_and_grad(self, coefficients: ArrayLike) -> tuple[float, NDArray[np.float64]]:
+    def value_and_grad(self, coefficients: ArrayLike, *, split: bool = False) -> tuple[float, NDArray[np.float64]]:
         """Objective value and its analytic gradient with respect to ``coefficients`` (float64).
 
         The gradient exists wherever no f(x_i) is exactly 0 and no ∇f(x_i) vanishes, i.e.
         almost everywhere; at f(x_i) = 0 the sign function's value 0 is used (a subgradient).
         It is orthogonal to ``coefficients`` (the objective is scale invariant).
+
+        ``split=True`` shares the blocks of rows between the worker threads even when the design
+        is kept (it always is shared when the design is rebuilt at every evaluation): for a
+        caller that runs nothing else meanwhile. The sums are then added in another order, so
+        the value differs from the one-thread pass by rounding (reproducibly, for a given
+        number of threads).
         """
         # One compiled pass, no BLAS call (an L-BFGS step runs in a fraction of a millisecond,
         # so even entering a BLAS thread limit here would be a noticeable share of it).
-        return self._value_and_grad(self._population(coefficients)[0])
+        return self._value_and_grad(self._population(coefficients)[0], split)
 
-    def _value_and_grad(self, a: NDArray[np.float64]) -> tuple[float, NDArray[np.float64]]:
+    def _value_and_grad(self, a: NDArray[np.float64], split: bool = False) -> tuple[float, NDArray[np.float64]]:
         from ._objective_kernels import member_pass
 
         source, factor = basis.derivative_gather(self.dim, self.degree)
@@ -515,8 +521,8 @@ class Objective:
         # of the pass: the blocks are then shared between the worker threads (both kernels
         # release the GIL), every workers-th block each, summed in a fixed order: reproducible.
         # (A million points: 0.28 s an evaluation on one thread.) A kept design's pass stays on
-        # the calling thread, as it always ran: the same sums, to the bit.
-        workers = min(self.threads, len(jobs)) if self._m is None else 1
+        # the calling thread unless asked to split: a polish's passes may run two side by side.
+        workers = min(self.threads, len(jobs)) if (self._m is None or split) else 1
         if workers == 1:
             sums, grad = part(self._member_block(job) for job in jobs)
         else:

@@ -29,6 +29,7 @@ Design notes:
 
 from __future__ import annotations
 
+import functools
 import time
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
@@ -371,7 +372,8 @@ def _polish(obj64, sub64, pool, pool_fun, has_starts: bool, r, settings: MethodO
     if sub64 is None:
         return xs, np.array([res.fun for res in polished]), polished
     funs = obj64(xs)
-    final = lbfgs(obj64.value_and_grad, xs[int(np.argmin(funs))],
+    # alone on the machine: the pass over all points on every worker thread
+    final = lbfgs(functools.partial(obj64.value_and_grad, split=True), xs[int(np.argmin(funs))],
                   maxiter=min(settings.polish_iterations, full_polish_budget(obj64.n_points)), precondition=r,
                   callback=staged)
     return np.vstack([xs, final.x]), np.append(funs, final.fun), [*polished, final]
