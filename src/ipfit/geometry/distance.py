@@ -160,7 +160,7 @@ class Target:
     _ENTRIES = 1 << 22  # neighbours per k-d tree call when completing candidates
 
     def __init__(self, samples: Samples, kind: str, corners: tuple[NDArray, ...] = (), *, tau: float = np.inf,
-                 far_budget: int = 5000, k: int = 6) -> None:
+                 far_budget: int = 5000, k: int = 6, tree=None) -> None:
         from scipy.spatial import cKDTree
 
         self.samples, self.kind, self.corners = samples, kind, corners
@@ -168,7 +168,8 @@ class Target:
         self.k = 1 if kind == "points" else min(k, len(samples.points))
         self.reach = _piece_radius(samples, kind, corners)
         self.band = 2 * tau + self.reach
-        self.tree = cKDTree(samples.points, leafsize=_LEAF_SIZE)
+        # a tree of the samples given (a cloud's own) answers the same: the searches are exact
+        self.tree = cKDTree(samples.points, leafsize=_LEAF_SIZE) if tree is None else tree
         self._cells: NDArray[np.int64] | None = None
 
     def _build_cells(self) -> None:
@@ -271,10 +272,10 @@ def _piece_radius(samples: Samples, kind: str, corners: tuple[NDArray, ...]) -> 
     return float(np.max(np.sqrt(median2 / count[used])) * 2 / 3)
 
 
-def points_target(pts: NDArray, tau: float) -> Target:
-    """The points themselves, each its own sample."""
+def points_target(pts: NDArray, tau: float, tree=None) -> Target:
+    """The points themselves, each its own sample (``tree``: a k-d tree of them, if one is at hand)."""
     n = len(pts)
-    return Target(Samples(pts, np.ones(n), np.full(n, -1), np.arange(n)), "points", tau=tau)
+    return Target(Samples(pts, np.ones(n), np.full(n, -1), np.arange(n)), "points", tau=tau, tree=tree)
 
 
 #: A jump between consecutive points of an ordered contour longer than this many times their
@@ -326,13 +327,14 @@ def mesh_target(vertices: NDArray, faces: NDArray, samples: Samples, tau: float)
 
 
 def data_target(pts: NDArray, faces: NDArray | None, ordered_contour: bool, spacing: float, max_samples: int,
-                tau: float) -> tuple[Target, str]:
+                tau: float, tree=None) -> tuple[Target, str]:
     """The shape the data stands for, and its name: the mesh's faces ("faces"), the 2D
     contour through the points in order ("contour") or the points themselves ("points").
     ``pts`` and ``faces`` are checked; ``spacing`` and ``max_samples`` sample the faces or
-    the contour, ``tau`` is the target's tolerance."""
+    the contour, ``tau`` is the target's tolerance; ``tree``, a callable giving a k-d tree of
+    ``pts``, is asked for only when the points are the target."""
     if faces is not None and len(faces):
         return mesh_target(pts, faces, sample_triangles(pts, faces, spacing, max_samples=max_samples), tau), "faces"
     if faces is None and ordered_contour:
         return contour_target(pts, spacing, max_samples, tau), "contour"
-    return points_target(pts, tau), "points"
+    return points_target(pts, tau, None if tree is None else tree()), "points"

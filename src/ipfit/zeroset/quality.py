@@ -363,7 +363,7 @@ def _data_side(cloud: Cloud, *, ordered_contour, tau, tau_fraction, spacing, max
     max_samples = check_int(max_samples, "max_samples", minimum=1000)
     ref, reference = cloud.derived("data_target", (bool(ordered_contour), spacing, max_samples, tau),
                                    lambda: data_target(cloud.points, cloud.faces, ordered_contour, spacing,
-                                                       max_samples, tau))
+                                                       max_samples, tau, lambda: cloud.kdtree))
     return tau, spacing, max_samples, ref, reference
 
 
