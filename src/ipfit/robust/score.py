@@ -328,10 +328,11 @@ def score_outliers(points: ArrayLike, *, outliers="auto", k: int | None = None,
     surfaces are found on a random 131,072 of them (fixed seed) and every point is scored once
     against them: the result still does not depend on the order, but which points that sample
     holds, and so a score near the threshold, can change with the position, orientation or units.
-    There 'auto' decides on the sample whether strays are evidence, when the sample is clear
-    (under 1 % of it beyond 3: the whole cloud's share is then below 2 % but with a
-    probability under 1e-100), and ``score`` and ``spacing``, which the weights then do not
-    need, are computed when first asked for (3-4 s of a 10⁶-point scan's fit).
+    There 'auto' decides on the sample whether strays are evidence when the sample is clear
+    (under 1 % of it beyond 3, half the evidence share: a random sample of 131,072 that shows
+    under 1 % where the cloud has 2 % is practically impossible), and ``score`` and
+    ``spacing``, which the weights then do not need, are computed when first asked for (3-4 s
+    of a 10⁶-point scan's fit).
 
     Parameters
     ----------
