@@ -4,8 +4,8 @@ Usage::
 
     python experiments/robust.py [--shapes DIR|FILE|NAME|bundled ...] [--every K] [--limit N]
                                  [--pipelines today sor robust] [--conditions clean noise-1 ...]
-                                 [--jobs 2] [--seed 0] [--out docs/robust.md] [--resume [--redo]]
-                                 [--page-only]
+                                 [--samples N] [--jobs 2] [--seed 0] [--out docs/robust.md]
+                                 [--resume [--redo]] [--page-only]
 
 Every shape (a 2D contour CSV or a 3D mesh in a folder of ``--shapes``, a file, a bundled
 dataset's name, or ``bundled`` for the six bundled datasets) is turned into a real-cloud version
@@ -23,7 +23,10 @@ side. Each pipeline fits the corrupted cloud:
 Each fit is scored against the *clean* shape with :func:`ipfit.zeroset.quality.quality` (τ = 2% of the
 box diagonal; a 2D contour's segments, a mesh's faces): F-score, spurious components, selected
 degree; with the fit's seconds and the share of points each pipeline treated as outliers against
-the planted share. Worker processes (``--jobs``) with one thread each run the cases; each first
+the planted share. ``--samples N`` draws each 3D mesh's surface at N points
+(``trimesh.sample.sample_surface``, seed 0) in place of its vertices before the same corruption, a
+dense scan of the object (scored against the same faces; 2D shapes keep their points).
+Worker processes (``--jobs``) with one thread each run the cases; each first
 fits a small circle and sphere, so that no timed fit pays for numba's compilation. The rows go to
 ``--out``'s ``.json`` twin as they finish (``--resume`` keeps those and runs the rest);
 ``--resume --redo`` fits the command's cases (its shapes under its conditions, by its pipelines)
@@ -247,21 +250,32 @@ FUNCTIONS = {"today": today, "sor": sor, "robust": robust}
 
 # --- one case: a shape under one condition, every pipeline -------------------------------------------------------
 
-def run_case(shape: str, path: str, condition: str, pipelines: tuple[str, ...], seed: int) -> list[dict]:
-    """The rows of every pipeline on ``shape`` corrupted by ``condition``, scored on the clean shape."""
+def surface_samples(vertices, faces, count: int):
+    """``count`` points uniform on the mesh's surface (trimesh's sampler, seed 0)."""
+    import trimesh
+
+    mesh = trimesh.Trimesh(vertices, faces, process=False)
+    return np.asarray(trimesh.sample.sample_surface(mesh, count, seed=0)[0], float)
+
+
+def run_case(shape: str, path: str, condition: str, pipelines: tuple[str, ...], seed: int,
+             samples: int | None = None) -> list[dict]:
+    """The rows of every pipeline on ``shape`` corrupted by ``condition``, scored on the clean shape
+    (a 3D mesh's surface drawn at ``samples`` points first, when given)."""
     from _versions import spurious_record
 
     from ipfit.zeroset.quality import looks_like_contour, quality
 
     clean, faces = read_clean(path)
     noise, outliers = CONDITIONS[condition]
-    points, planted = corrupt(clean, path, noise, outliers)
+    drawn = surface_samples(clean, faces, samples) if samples and faces is not None else clean
+    points, planted = corrupt(drawn, path, noise, outliers)
     dim = clean.shape[1]
     contour = dim == 2 and looks_like_contour(clean)
     rows = []
     for pipeline in pipelines:
         row = {"shape": shape, "dim": dim, "condition": condition, "noise": noise, "outliers": outliers,
-               "pipeline": pipeline, "n_clean": len(clean), "n": len(points), "n_planted": int(planted.sum()),
+               "pipeline": pipeline, "n_clean": len(drawn), "n": len(points), "n_planted": int(planted.sum()),
                "reference": "faces" if faces is not None else "contour" if contour else "points"}
         start = time.perf_counter()
         try:
@@ -295,7 +309,8 @@ def _start_worker() -> None:
     start_worker(None)
 
 
-def run(specs, conditions, pipelines, seed: int, jobs: int, json_path: Path, meta: dict, done: list[dict]) -> list:
+def run(specs, conditions, pipelines, seed: int, jobs: int, json_path: Path, meta: dict, done: list[dict],
+        samples: int | None = None) -> list:
     """Every case not in ``done``, largest shapes first (so that the workers end together); the
     JSON is rewritten after each case, so that an interrupted run can ``--resume``."""
     import multiprocessing
@@ -309,7 +324,7 @@ def run(specs, conditions, pipelines, seed: int, jobs: int, json_path: Path, met
     for name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
         os.environ[name] = "1"
     with ProcessPoolExecutor(jobs, multiprocessing.get_context("spawn"), initializer=_start_worker) as pool:
-        futures = [pool.submit(run_case, *case, seed) for case in cases]
+        futures = [pool.submit(run_case, *case, seed, samples) for case in cases]
         for k, future in enumerate(as_completed(futures), 1):
             for row in future.result():
                 rows.append(row)
@@ -458,7 +473,10 @@ def markdown(meta: dict, rows: list[dict]) -> str:
         (f"Generated by `{meta['command']}` on {meta['date']} ({meta['machine']}; ipfit {meta['commit']}; "
         f"{meta['jobs']} worker process{'es' if meta['jobs'] > 1 else ''} with one thread each, side by side; "
         f"{meta['wall_seconds'] / 60:.0f} minutes), seed {meta['seed']}, on {shapes_text} "
-        f"({', '.join(meta['shapes'])}). The protocol of issue 30: each shape's points only (no normals), shuffled, "
+        f"({', '.join(meta['shapes'])}). "
+        + (f"Each 3D mesh's surface drawn at {meta['samples']:,} points (`trimesh.sample.sample_surface`, seed 0) "
+           "in place of its vertices: a dense scan of it. " if meta.get("samples") else "")
+        + "The protocol of issue 30: each shape's points only (no normals), shuffled, "
         "with Gaussian noise of σ = 0.5% or 1% of the box diagonal, or 10%, 25% or 40% of the point count added as "
         "outliers uniform in the bounding box grown by 20% on each side; the seed fixed by the file name and the "
         f"settings ({meta['corrupt_check']}). Each fit is scored against the *clean* shape by "
@@ -527,6 +545,7 @@ def main(argv=None) -> int:
     parser.add_argument("--conditions", nargs="+", choices=list(CONDITIONS), default=list(CONDITIONS))
     parser.add_argument("--pipelines", nargs="+", choices=PIPELINES, default=list(PIPELINES))
     parser.add_argument("--seed", type=int, default=0, help="the fits' seed (the clouds' are fixed by corrupt.py)")
+    parser.add_argument("--samples", type=int, help="draw each 3D mesh's surface at N points instead of its vertices")
     parser.add_argument("--jobs", type=int, default=2, help="worker processes (one thread each)")
     parser.add_argument("--out", default="docs/robust.md")
     parser.add_argument("--resume", action="store_true", help="keep the rows of the JSON and run the missing cases")
@@ -578,7 +597,7 @@ def main(argv=None) -> int:
             "shapes": [Path(s).name if Path(s).exists() else s for s in args.shapes]
             + [f"every {args.every}"] * (args.every > 1) + [f"at most {args.limit} each"] * (args.limit is not None),
             "conditions": args.conditions, "pipelines": pipelines, "outlier_keyword": has_keyword,
-            "robust_note": note, "corrupt_check": check, "source": args.source,
+            "robust_note": note, "corrupt_check": check, "source": args.source, "samples": args.samples,
             "open3d_check": check_open3d(corrupt(first, specs[0][1], *CONDITIONS["outliers-25"])[0])}
     done, before = [], 0.0
     if args.resume and json_path.exists():
@@ -600,7 +619,10 @@ def main(argv=None) -> int:
     start = time.perf_counter()
     json_path.parent.mkdir(parents=True, exist_ok=True)
     meta["wall_seconds"] = before
-    rows = run(specs, args.conditions, pipelines, args.seed, args.jobs, json_path, meta, done)
+    if args.resume and done and stored["meta"].get("samples") != args.samples:
+        raise SystemExit(f"--samples {args.samples}: the stored rows were drawn with --samples "
+                         f"{stored['meta'].get('samples')}; write another --out")
+    rows = run(specs, args.conditions, pipelines, args.seed, args.jobs, json_path, meta, done, args.samples)
     meta["wall_seconds"] = before + time.perf_counter() - start
     write_json(json_path, meta, rows)
     out.write_text(markdown(meta, rows), encoding="utf-8")
