@@ -308,27 +308,37 @@ def test_uncached_blocks_give_the_cached_results(rng, monkeypatch):
     np.testing.assert_allclose(rebuilt.whitening(), cached.whitening(), rtol=1e-10, atol=1e-12)
 
 
-def test_a_rebuilt_design_shares_the_polish_pass_between_threads(rng, monkeypatch):
-    # A design too big to keep is rebuilt at every evaluation; the single-member pass (the
-    # polish's) then splits its blocks between the worker threads. The sums must be those of one
-    # thread to rounding, the same on every call, and the far-field rows and weights counted once.
+@pytest.mark.parametrize("kept", [False, True])
+def test_a_polish_pass_shared_between_threads_sums_the_same_to_rounding(rng, monkeypatch, kept):
+    # The single-member pass (the polish's) splits its blocks between the worker threads when the
+    # design is rebuilt at every evaluation (too big to keep), or when a kept design's caller asks
+    # (split=True: the final polish, which runs alone). The sums must be those of one thread to
+    # rounding, the same on every call, and the far-field rows and weights counted once; on one
+    # thread a split pass is the plain one, to the bit.
     from ipfit.fitting.farfield import FarFieldTerm
 
     shape = synthetic.torus(2000, rng=rng)
     weights = rng.uniform(0.2, 1.0, len(shape.points))
     a = shape.polynomial.coefficients + 0.05 * rng.normal(size=35)
     far = [FarFieldTerm.from_data(shape.points, shape.normals, 4, weight=0.5)]
-    kept = Objective(shape.points, shape.normals, 4, weights=weights, terms=far, threads=1).value_and_grad(a)
-    monkeypatch.setattr(objective_module, "CACHE_BYTES", 0)
+    plain = Objective(shape.points, shape.normals, 4, weights=weights, terms=far, threads=1).value_and_grad(a)
+    if not kept:
+        monkeypatch.setattr(objective_module, "CACHE_BYTES", 0)
     monkeypatch.setattr(objective_module, "_SINGLE_ROWS", 300)  # 7 blocks of points, then the far rows
     one = Objective(shape.points, shape.normals, 4, weights=weights, terms=far, threads=1)
     two = Objective(shape.points, shape.normals, 4, weights=weights, terms=far, threads=2)
-    assert two._m is None and len(two._member_jobs()) == 8
-    for value, grad in (one.value_and_grad(a), two.value_and_grad(a)):
-        assert value == pytest.approx(kept[0], rel=1e-13)
-        np.testing.assert_allclose(grad, kept[1], rtol=1e-10, atol=1e-13 * np.abs(kept[1]).max())
-    first, again = two.value_and_grad(a), two.value_and_grad(a)
+    assert (two._m is not None) == kept and len(two._member_jobs()) == 8
+    pools, pool = [], objective_module._pool
+    monkeypatch.setattr(objective_module, "_pool", lambda workers: pools.append(workers) or pool(workers))
+    for value, grad in (one.value_and_grad(a, split=kept), two.value_and_grad(a, split=kept)):
+        assert value == pytest.approx(plain[0], rel=1e-13)
+        np.testing.assert_allclose(grad, plain[1], rtol=1e-10, atol=1e-13 * np.abs(plain[1]).max())
+    assert pools and set(pools) == {2}  # two threads shared the blocks (one thread never asks for a pool)
+    first, again = two.value_and_grad(a, split=kept), two.value_and_grad(a, split=kept)
     assert first[0] == again[0] and np.array_equal(first[1], again[1])  # a fixed summation order
+    if kept:
+        alone, unsplit = one.value_and_grad(a, split=True), one.value_and_grad(a)
+        assert alone[0] == unsplit[0] and np.array_equal(alone[1], unsplit[1])
 
 
 def test_a_kept_design_runs_the_polish_pass_on_one_thread(rng):
@@ -338,30 +348,6 @@ def test_a_kept_design_runs_the_polish_pass_on_one_thread(rng):
     one = Objective(shape.points, shape.normals, 4, threads=1).value_and_grad(a)
     two = Objective(shape.points, shape.normals, 4, threads=2).value_and_grad(a)
     assert one[0] == two[0] and np.array_equal(one[1], two[1])
-
-
-def test_a_kept_design_split_between_threads_sums_the_same_to_rounding(rng, monkeypatch):
-    # split=True (the final polish, which runs alone) shares a kept design's blocks between the
-    # threads: one thread's sums to rounding, the same on every call; one thread or a single
-    # block is the plain pass, to the bit.
-    from ipfit.fitting.farfield import FarFieldTerm
-
-    shape = synthetic.torus(3000, rng=rng)
-    weights = rng.uniform(0.2, 1.0, len(shape.points))
-    a = shape.polynomial.coefficients + 0.05 * rng.normal(size=35)
-    far = [FarFieldTerm.from_data(shape.points, shape.normals, 4, weight=0.5)]
-    plain = Objective(shape.points, shape.normals, 4, weights=weights, terms=far, threads=1).value_and_grad(a)
-    monkeypatch.setattr(objective_module, "_SINGLE_ROWS", 400)  # 8 blocks of points, then the far rows
-    two = Objective(shape.points, shape.normals, 4, weights=weights, terms=far, threads=2)
-    assert two._m is not None and len(two._member_jobs()) == 9
-    value, grad = two.value_and_grad(a, split=True)
-    assert value == pytest.approx(plain[0], rel=1e-13)
-    np.testing.assert_allclose(grad, plain[1], rtol=1e-10, atol=1e-13 * np.abs(plain[1]).max())
-    again = two.value_and_grad(a, split=True)
-    assert again[0] == value and np.array_equal(again[1], grad)
-    one = Objective(shape.points, shape.normals, 4, weights=weights, terms=far, threads=1)
-    alone = one.value_and_grad(a, split=True)
-    assert alone[0] == one.value_and_grad(a)[0] and np.array_equal(alone[1], one.value_and_grad(a)[1])
 
 
 @pytest.mark.slow
