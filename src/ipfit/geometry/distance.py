@@ -327,14 +327,14 @@ def mesh_target(vertices: NDArray, faces: NDArray, samples: Samples, tau: float)
 
 
 def data_target(pts: NDArray, faces: NDArray | None, ordered_contour: bool, spacing: float, max_samples: int,
-                tau: float, tree=None) -> tuple[Target, str]:
+                tau: float, get_tree=None) -> tuple[Target, str]:
     """The shape the data stands for, and its name: the mesh's faces ("faces"), the 2D
     contour through the points in order ("contour") or the points themselves ("points").
     ``pts`` and ``faces`` are checked; ``spacing`` and ``max_samples`` sample the faces or
-    the contour, ``tau`` is the target's tolerance; ``tree``, a callable giving a k-d tree of
-    ``pts``, is asked for only when the points are the target."""
+    the contour, ``tau`` is the target's tolerance; ``get_tree``, a callable giving a k-d tree
+    of ``pts``, is asked for only when the points are the target."""
     if faces is not None and len(faces):
         return mesh_target(pts, faces, sample_triangles(pts, faces, spacing, max_samples=max_samples), tau), "faces"
     if faces is None and ordered_contour:
         return contour_target(pts, spacing, max_samples, tau), "contour"
-    return points_target(pts, tau, None if tree is None else tree()), "points"
+    return points_target(pts, tau, None if get_tree is None else get_tree()), "points"
