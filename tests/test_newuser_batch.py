@@ -12,6 +12,7 @@ import os
 import socket
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -38,14 +39,21 @@ def _summary(folder: Path) -> list[dict]:
 
 
 @contextlib.contextmanager
-def _port_8787_taken():
-    """A socket listening on port 8787 (Dask's HTTP port), unless something already does."""
+def _port_8787_taken(wait: float = 60.0):
+    """A socket of ours listening on port 8787 (Dask's HTTP port). Another process holding it
+    (a second test run's cluster) may let it go at any moment, and the batch would then find it
+    free: the port is asked for again until it is ours, for up to ``wait`` seconds."""
     sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
-    try:
-        sock.bind(("", 8787))
-        sock.listen()
-    except OSError:  # taken already: by another cluster, which is the case under test anyway
-        pass
+    deadline = time.monotonic() + wait
+    while True:
+        try:
+            sock.bind(("", 8787))
+            sock.listen()
+            break
+        except OSError:
+            if time.monotonic() > deadline:  # held all along by another: taken, as the test needs
+                break
+            time.sleep(0.5)
     try:
         yield
     finally:
