@@ -277,22 +277,19 @@ def _big(points: NDArray, counts: NDArray, k: int, workers: int, mode: str | flo
     def every() -> NDArray[np.float64]:
         return _score(points, counts, ref, k, reach, workers)[0]
 
-    if not isinstance(mode, str):
-        score, sigma, _ = _score(points, counts, ref, k, reach, workers)
-        return score, sigma, every
-    single = counts == 1
-    probe = np.union1d(pick, np.flatnonzero(~single))
-    probe_score, sigma, _ = _score(points[probe], counts[probe], ref[probe], k, reach, workers)
-    if mode == "none":
-        return None, sigma, every
-    beyond = probe_score > _EVIDENCE_SCORE
-    sampled = single[probe]
-    # the singletons' share estimated from the sample's, the repeated positions' counted
-    singles = beyond[sampled].mean() if sampled.any() else 1.0
-    mass = singles * np.count_nonzero(single) + (counts[probe] * (beyond & ~sampled)).sum()
-    if mass < 0.5 * _EVIDENCE_SHARE * counts.sum():
-        return None, sigma, every
-    score = every()
+    if isinstance(mode, str):
+        single = counts == 1
+        probe = np.union1d(pick, np.flatnonzero(~single))
+        probe_score, sigma, _ = _score(points[probe], counts[probe], ref[probe], k, reach, workers)
+        beyond = probe_score > _EVIDENCE_SCORE
+        sampled = single[probe]
+        # the singletons' share estimated from the sample's, the repeated positions' counted
+        singles = beyond[sampled].mean() if sampled.any() else 1.0
+        mass = singles * np.count_nonzero(single) + (counts[probe] * (beyond & ~sampled)).sum()
+        if mode == "none" or mass < 0.5 * _EVIDENCE_SHARE * counts.sum():
+            return None, sigma, every
+    # the noise scale of the whole pass is the probe's: the same reference points' own fits
+    score, sigma, _ = _score(points, counts, ref, k, reach, workers)
     return score, sigma, every
 
 
