@@ -308,13 +308,12 @@ def test_the_second_fits_of_a_weighted_or_noisy_surface_are_announced():
     stream = io.StringIO()
     Progress("lines", stream=stream)({"event": "weights_variant",
                                       "message": "fitting again, weighted by the outlier score alone"})
-    Progress("lines", stream=stream)({"event": "normals_variant", "message": "fitting again with the normals of "
-                                      "the nearest points (not grown to the noise)"})
+    Progress("lines", stream=stream)({"event": "normals_variant", "message": "fitting again with the normals "
+                                      "estimated without the noise's σ"})
     Progress("lines", stream=stream)({"event": "reorient",
                                       "message": "1,234 normals turned to the fit's gradient, fitting again"})
     assert stream.getvalue().splitlines() == ["fitting again, weighted by the outlier score alone",
-                                              "fitting again with the normals of the nearest points (not grown to "
-                                              "the noise)",
+                                              "fitting again with the normals estimated without the noise's σ",
                                               "1,234 normals turned to the fit's gradient, fitting again"]
 
 

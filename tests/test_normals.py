@@ -327,14 +327,14 @@ def test_noisy_synthetic_surfaces(make, fraction, rng):
 
 
 @pytest.mark.parametrize("make, median", [
-    (lambda rng: synthetic.ellipsoid(3000, (1.0, 0.2, 0.1), rng=rng), 14),
-    (lambda rng: synthetic.torus(3000, 1.0, 0.1, rng=rng), 19),
+    (lambda rng: synthetic.ellipsoid(3000, (1.0, 0.2, 0.1), rng=rng), 25),
+    (lambda rng: synthetic.torus(3000, 1.0, 0.1, rng=rng), 30),
 ], ids=["flat ellipsoid", "thin torus"])
-def test_a_known_noise_grows_the_neighbourhoods_no_size_flattens(make, median, rng):
-    """σ = 1 % of the diagonal on shapes that curve within a few σ: no neighbourhood size looks
-    flatter, and the k nearest points (about 2 σ wide) fit the noise. Measured (seeds 0-5): plain
-    26-30° median, 14-25 % flipped; with the noise's σ, true or the outlier score's, 11° and 16-17°,
-    under 1.6 % flipped."""
+def test_a_known_noise_estimates_on_a_sample_whose_neighbours_see_past_it(make, median, rng):
+    """σ = 1 % of the diagonal on shapes that curve within a few σ: the k nearest points (about
+    2 σ wide) fit the noise. With the noise's σ, true or the outlier score's, the normals are the
+    plain fit's on an even sample whose k nearest reach 4 σ. Measured (seeds 0-5): plain 26-30°
+    median, 14-25 % flipped; on the sample 21-23° (ellipsoid) and 27-28° (torus), 2-4 % flipped."""
     points, truth, _ = make(rng)
     noisy, sigma = add_noise(points, 0.01, rng)
     plain = normal_agreement(estimate_normals(noisy), truth)
@@ -343,8 +343,53 @@ def test_a_known_noise_grows_the_neighbourhoods_no_size_flattens(make, median, r
     for noise in (sigma, score_outliers(noisy).noise_scale):
         known = normal_agreement(estimate_normals(noisy, noise=noise, progress=events.append), truth)
         assert known.median_angle < median
-        assert known.flipped_fraction < 0.03
-    assert sum("grown to 4 σ of the noise" in e["message"] for e in events) == 2
+        assert known.flipped_fraction < 0.06
+    assert sum("its 12 nearest 4 σ of the noise wide" in e["message"] for e in events) == 2
+
+
+def _lens(n, thickness, rng):
+    """``n`` points uniform on the ellipsoid of semi-axes (1, 1, ``thickness``), and its normals."""
+    axes = np.array([1.0, 1.0, thickness])
+    directions = rng.normal(size=(40 * n, 3))
+    on = directions / np.linalg.norm(directions, axis=1, keepdims=True) * axes
+    # uniform by area: the surface element of x = axes·u is ∝ |x / axes²| ∏ axes
+    element = np.linalg.norm(on / axes ** 2, axis=1)
+    points = on[rng.random(len(on)) < element / element.max()][:n]
+    normals = points / axes ** 2
+    return points, normals / np.linalg.norm(normals, axis=1, keepdims=True)
+
+
+def test_a_known_noise_does_not_tilt_a_thin_rim(rng):
+    """A dense lens 11 σ thick (σ = 0.5 % of the diagonal): neighbourhoods grown to where they look
+    flattest reach across its rim, whose normals they turn towards the flat sides as a whole
+    (median 71-75° off there, seeds 0-5): an error a fit cannot average out (the Turk hammerhead's
+    flattened body, docs/robust-dense.md). On the even sample whose k nearest reach 4 σ, the rim's
+    lines err at random: 35-51° median. The price is paid on the flat sides: there the grown
+    neighbourhoods' 3.6° becomes 16-17°, and 5-6 % of all the signs come out wrong (not 0-3 %)."""
+    points, truth = _lens(20_000, 0.08, rng)
+    noisy, sigma = add_noise(points, 0.005, rng)
+    rim = np.abs(truth[:, 2]) < 0.5
+    grown = normal_agreement(estimate_normals(noisy)[rim], truth[rim])
+    assert grown.median_angle > 65  # the case the sample is for
+    sampled = normal_agreement(estimate_normals(noisy, noise=score_outliers(noisy).noise_scale), truth)
+    assert normal_agreement(estimate_normals(noisy, noise=sigma)[rim], truth[rim]).median_angle < 58
+    assert sampled.median_angle < 25 and sampled.flipped_fraction < 0.09
+
+
+def test_the_noise_sample_reaches_four_sigma(rng):
+    """The sample's k nearest points reach about 4 σ (median over the points); a cloud that
+    reaches that already is not sampled."""
+    from ipfit.normals.estimate import _noise_sample
+
+    points, _, _ = synthetic.sphere(40_000, rng=rng)
+    tree = cKDTree(points)
+    reach_all = np.median(tree.query(points, 12)[0][:, -1])
+    for sigma in (reach_all / 2, reach_all / 3):  # the k nearest of all the points reach 2 σ, 1⅓ σ
+        sample = _noise_sample(points, tree, 12, sigma, 1)
+        assert sample is not None and len(np.unique(sample)) == len(sample)
+        reach = np.median(cKDTree(points[sample]).query(points[sample], 12)[0][:, -1])
+        assert abs(reach / (4 * sigma) - 1) < 0.1
+    assert _noise_sample(points, tree, 12, reach_all / 4, 1) is None
 
 
 def test_a_known_noise_changes_nothing_where_a_size_flattens_or_the_points_are_clean(rng):
@@ -457,12 +502,13 @@ def test_a_noisy_thin_part_seen_as_one_sheet_keeps_its_two_sides(rng):
     centroids of both its faces fall on its middle, one sheet of representatives oriented one way,
     and one face came out inside out as a whole (75-89 % of it flipped, seeds 0-2). Told apart by
     the winding number, each point takes the side of the sheet it lies on: what is left flipped
-    are the points the noise carried across the middle (about Φ(-1.1) = 14 % at this thickness)."""
+    are the points the noise carried across the middle (about Φ(-1.1) = 14 % at this thickness).
+    The noise's σ not given: with it, the normals come from a sample instead (the test above)."""
     diagonal = float(np.linalg.norm([2.9, 2.0, 2.0]))
     sigma = 0.01 * diagonal
     points, truth, face = finned_sphere(20_000, 2.2 * sigma, rng)
     noisy = points + rng.normal(scale=sigma, size=points.shape)
-    estimated = estimate_normals(noisy, noise=score_outliers(noisy).noise_scale)
+    estimated = estimate_normals(noisy)  # the grown neighbourhoods, oriented by orient_coarse
     for side in (1, -1):
         assert normal_agreement(estimated[face == side], truth[face == side]).flipped_fraction < 0.3
     body = points[:, 0] < 0.8

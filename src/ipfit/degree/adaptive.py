@@ -296,8 +296,8 @@ _REORIENT_FEWEST = 0.01
 # that already follows the data seldom gains from either (docs/reorient-clean.md), and each costs
 # another degree loop.
 _POOR_BELOW = EXTEND_BELOW[3]
-# A noisy 3D cloud whose normals were grown to the noise's σ is fitted again with its nearest
-# points' normals when the first fit measures poorly (_POOR_BELOW). That fit is kept when its
+# A noisy 3D cloud whose normals were estimated for the noise's σ is fitted again with the normals
+# estimated without it when the first fit measures poorly (_POOR_BELOW). That fit is kept when its
 # F-score on the points is higher by more than the degree rule's tolerance, or, when its selected
 # degree is higher, by more than this (_plain_normals): under σ = 1 % of the box diagonal a
 # higher degree chases the noise, scoring a little higher on the noisy points and lower against
@@ -405,8 +405,8 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
         subsample of it and the selected one is measured on every point, see
         :class:`~ipfit.SearchOptions` ``fit_points``); 'weights_variant' with a 'message' before
         each further fit of a weighted 3D cloud (see ``outliers``); 'normals_variant' with a
-        'message' before the fit of a noisy 3D cloud with the normals of its nearest points (see
-        Notes); 'reorient' with a 'message' before the second fit of a 3D cloud with estimated
+        'message' before the fit of a noisy 3D cloud with the normals estimated without the
+        noise's σ (see Notes); 'reorient' with a 'message' before the second fit of a 3D cloud with estimated
         normals (see Notes).
 
     Returns
@@ -416,12 +416,12 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
     Notes
     -----
     The normals of a noisy 3D cloud are estimated knowing the noise's σ that the outlier score
-    found (``estimate_normals(..., noise=)``), on neighbourhoods about 4 σ wide where no size
-    looks flatter; when that fit's best clean F-score is below 0.95, the cloud is fitted again
-    with the normals of the nearest points (a part thinner than the neighbourhoods comes out
-    inside out as a whole), and that fit is kept when its F-score on the points is higher by
-    more than 0.01 (by more than 0.05 at a higher degree, which may chase the noise), the
-    ``message`` saying which.
+    found (``estimate_normals(..., noise=)``), on an even sample of the points whose k nearest
+    reach about 4 σ; when that fit's best clean F-score is below 0.95, the cloud is fitted again
+    with the normals estimated without σ (neighbourhoods grown to where they look flattest: closer
+    on smooth parts, but a thin part can come out inside out as a whole), and that fit is kept
+    when its F-score on the points is higher by more than 0.01 (by more than 0.05 at a higher
+    degree, which may chase the noise), the ``message`` saying which.
 
     A 3D cloud whose normals are estimated is fitted twice when it looks noisy
     (``ipfit.normals.estimate.looks_noisy``) or its first fit's best clean F-score is below
@@ -503,9 +503,9 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
                                          noise=noise, progress=progress, return_confidence=True)
         if support.any():
             scored_weights, weights = weights, weights * support
-    # Noisy 3D points may have had their neighbourhoods grown to the noise's σ (estimate_normals'
-    # noise): a fit that misses the shape then gets a look with the nearest points' normals.
-    grown = known is None and noise is not None and dim == 3 and rule.measured
+    # Noisy 3D points may have had their normals estimated for the noise's σ (estimate_normals'
+    # noise): a fit that misses the shape then gets a look with the normals estimated without it.
+    for_noise = known is None and noise is not None and dim == 3 and rule.measured
     # One cloud for the whole fit: it keeps what every degree and repair round reuses (far-field
     # samples, start fits' R factors, spacing, the data's side of the quality measurements). Its
     # normals are ``unit`` normalised once more, as refine and the linear fits have always done
@@ -522,7 +522,7 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
     reorient = rule.measured and known is None and dim == 3
     second_pass = copy.deepcopy(generator) if reorient else None
     unweighted_pass = copy.deepcopy(generator) if every is not None else None
-    plain_pass = copy.deepcopy(generator) if grown else None
+    plain_pass = copy.deepcopy(generator) if for_noise else None
     if scored_weights is None or dim != 3:
         loop = _degree_loop(cloud, unit, settings, generator)
         total = [loop]
@@ -561,7 +561,7 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
             confident = slice(None)  # every point, its normals estimated on all of them
             scored = dataclasses.replace(cast(OutlierScore, scored), weights=np.ones(len(cloud)),
                                          inliers=np.ones(len(cloud), bool))
-    if grown and loop.reason != "interrupted" and rule.best_clean_f(loop.results) < _POOR_BELOW:
+    if for_noise and loop.reason != "interrupted" and rule.best_clean_f(loop.results) < _POOR_BELOW:
         nearest = _without_noise(cloud.points, confident, unit)
         if nearest is not None:
             loop, cloud, unit = _plain_normals(loop, cloud, unit, nearest, settings, plain_pass, total)
@@ -708,7 +708,7 @@ def _unweighted(loop: _Loop, every: tuple[NDArray, NDArray | None], scored: Outl
 
 def _without_noise(points: NDArray, confident: NDArray[np.bool_] | slice, unit: NDArray) -> NDArray | None:
     """The normals of ``points`` estimated as without the noise's σ (on the ``confident`` points,
-    as ``unit`` was), or None when they are ``unit`` (not noisy, or no neighbourhood was grown for σ)."""
+    as ``unit`` was), or None when they are ``unit`` (not noisy, or σ changed nothing)."""
     if not looks_noisy(points):
         return None
     plain = estimate_normals(points, inliers=None if isinstance(confident, slice) else confident)
@@ -717,19 +717,20 @@ def _without_noise(points: NDArray, confident: NDArray[np.bool_] | slice, unit: 
 
 def _plain_normals(loop: _Loop, cloud: Cloud, unit, plain: NDArray, settings: _LoopSettings, generator,
                    total: list[_Loop]) -> tuple[_Loop, Cloud, NDArray]:
-    """``(loop, cloud, unit)``, or the degree loop run again with the ``plain`` normals (those of
-    the k nearest points, without the noise's σ), its cloud and normals, when it measures better
-    by more than :data:`~ipfit.degree.rules.TOLERANCE`, or by more than ``_NEAREST_NORMALS_MARGIN``
-    at a higher selected degree.
+    """``(loop, cloud, unit)``, or the degree loop run again with the ``plain`` normals (estimated
+    without the noise's σ: neighbourhoods grown to where they look flattest, or the k nearest
+    points where none does), its cloud and normals, when it measures better by more than
+    :data:`~ipfit.degree.rules.TOLERANCE`, or by more than ``_NEAREST_NORMALS_MARGIN`` at a higher
+    selected degree.
 
-    Neighbourhoods grown to a few σ average the noise, but across a part thinner than that they
-    see both sides: a whole part then comes out inside out (the cow's legs at σ = 1 % of the box
-    diagonal: a fit of degree 2, F 0.43 against the clean mesh, where the plain normals' fit has
-    F 0.95).
+    The normals estimated for σ (on an even sample whose k nearest points reach 4 σ) err at
+    random, a few per cent of their signs too; those grown to where they look flattest are
+    closer on smooth parts, but tilt a thin body's rim as a whole, and across a part thinner than
+    them they see both sides and turn it inside out.
     """
     if settings.progress is not None:
-        settings.progress({"event": "normals_variant", "message": "fitting again with the normals of the nearest "
-                                                                  "points (not grown to the noise)"})
+        settings.progress({"event": "normals_variant", "message": "fitting again with the normals estimated "
+                                                                  "without the noise's σ"})
     turned = Cloud._checked(cloud.points, as_normals(plain, cloud.points), cloud.faces, cloud.weights)
     again = _another_loop(turned, plain, settings, generator, total)
     if again is None:
@@ -737,12 +738,12 @@ def _plain_normals(loop: _Loop, cloud: Cloud, unit, plain: NDArray, settings: _L
     trusted = _trusted(cloud.points, cloud.weights)
     higher = again.results[again.index].degree > loop.results[loop.index].degree
     margin = _NEAREST_NORMALS_MARGIN if higher else TOLERANCE
-    better, nearest_f, grown_f = _compared(again, loop, trusted, settings.rule, margin)
+    better, nearest_f, noise_f = _compared(again, loop, trusted, settings.rule, margin)
     if better:
-        note = (f"normals: the nearest points' (F-score {nearest_f:.3f} on the points, against {grown_f:.3f} with "
-                "those grown to the noise)")
+        note = (f"normals: estimated without the noise's σ (F-score {nearest_f:.3f} on the points, against "
+                f"{noise_f:.3f} with those estimated for it)")
         return dataclasses.replace(again, notes=(*loop.notes, note)), turned, plain
-    note = (f"normals: grown to the noise (F-score {grown_f:.3f} on the points; the nearest points' gave "
+    note = (f"normals: estimated for the noise (F-score {noise_f:.3f} on the points; those without its σ gave "
             f"{nearest_f:.3f}{' at a higher degree' if higher else ''}, not better by more than {margin:g})")
     return dataclasses.replace(loop, notes=(*loop.notes, note)), cloud, unit
 
