@@ -26,8 +26,8 @@ from them by more than 30°. For meshes, --outward first checks which of those r
 point out of the mesh's solid (generalized winding numbers; a mesh that passes through itself, or
 has holes, has some that do not) and reports the disagreement over the others too. --noise gives
 the estimate the noise's σ (a number in the points' units, or auto: the outlier score's estimate, as
-`ipfit fit` finds it): noisy 3D points then get neighbourhoods about 4 σ wide where no size looks
-flatter (noise about as wide as the shape's bends).
+`ipfit fit` finds it): noisy 3D points then get the normals of an even sample of them whose k nearest
+reach about 4 σ (or, too sparse for that, neighbourhoods grown to 4 σ where no size looks flatter).
 """
 
 _OFF_LINE = 30.0  # degrees: report estimated normals whose line differs more than this
