@@ -406,8 +406,8 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
         :class:`~ipfit.SearchOptions` ``fit_points``); 'weights_variant' with a 'message' before
         each further fit of a weighted 3D cloud (see ``outliers``); 'normals_variant' with a
         'message' before the fit of a noisy 3D cloud with the normals estimated without the
-        noise's σ (see Notes); 'reorient' with a 'message' before the second fit of a 3D cloud with estimated
-        normals (see Notes).
+        noise's σ (see Notes); 'reorient' with a 'message' before the second fit of a 3D cloud
+        with estimated normals (see Notes).
 
     Returns
     -------

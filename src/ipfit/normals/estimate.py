@@ -327,12 +327,13 @@ def _noise_sample(pts: NDArray, tree: cKDTree, k: int, sigma: float, workers: in
         return float(np.median(points_tree.query(probe, k, workers=workers)[0][:, -1]))
 
     m, now = n, reach(pts, tree)
-    for _ in range(3):
+    for correction in range(3):
         m = int(max(_SAMPLE_FEWEST, k + 1, m * (now / target) ** 2))
         if m >= n:
             return None
         sample = spread(pts, m)
-        now = reach(pts[sample], cKDTree(pts[sample]))
+        if correction < 2:
+            now = reach(pts[sample], cKDTree(pts[sample]))
     return sample
 
 
