@@ -3,7 +3,7 @@
 Usage::
 
     python experiments/robust.py [--shapes DIR|FILE|NAME|bundled ...] [--every K] [--limit N]
-                                 [--pipelines today sor robust] [--conditions clean noise-1 ...]
+                                 [--pipelines today sor robust mesh] [--conditions clean noise-1 ...]
                                  [--samples N] [--jobs 2] [--seed 0] [--out docs/robust.md]
                                  [--resume [--redo]] [--page-only]
 
@@ -18,7 +18,10 @@ side. Each pipeline fits the corrupted cloud:
 * **today**: ``fit_adaptive(points)``, normals estimated (``outliers="none"`` once the API has it);
 * **sor**: Open3D's statistical outlier removal (k = 20 neighbours, mean + 2 standard deviations),
   then ``fit_adaptive`` on the points kept;
-* **robust**: ``fit_adaptive(points, outliers="auto")``, skipped while the API has no ``outliers=``.
+* **robust**: ``fit_adaptive(points, outliers="auto")``, skipped while the API has no ``outliers=``;
+* **mesh**, the reference the issue measures bare clouds against ("as good as meshes"): a 3D shape's
+  clean mesh itself, ``fit_adaptive(ipfit.load(FILE))`` (``ipfit fit MESH``: its vertices with their
+  normals and faces), under the clean condition only.
 
 Each fit is scored against the *clean* shape with :func:`ipfit.zeroset.quality.quality` (τ = 2% of the
 box diagonal; a 2D contour's segments, a mesh's faces): F-score, spurious components, selected
@@ -74,7 +77,9 @@ CONDITIONS = {
 }
 LABELS = {"clean": "clean", "noise-0.5": "noise σ 0.5%", "noise-1": "noise σ 1%", "outliers-10": "10% outliers",
           "outliers-25": "25% outliers", "outliers-40": "40% outliers"}
-PIPELINES = ("today", "sor", "robust")
+PIPELINES = ("today", "sor", "robust", "mesh")
+# a bare cloud is as good as its mesh when its F-score is at most this much below the mesh fit's
+AS_GOOD = 0.03
 SOR_NEIGHBOURS, SOR_STD_RATIO = 20, 2.0
 
 
@@ -245,7 +250,20 @@ def treated_as_outliers(pipeline: str, points, result):
     return ~np.asarray(found.inliers), float(found.noise_scale)
 
 
-FUNCTIONS = {"today": today, "sor": sor, "robust": robust}
+def mesh(path: str, seed: int = 0):
+    """``ipfit fit MESH`` on the clean mesh: its vertices, their normals and its faces."""
+    from ipfit import fit_adaptive, load
+
+    return fit_adaptive(load(path), rng=seed)
+
+
+def runs(pipeline: str, path: str, condition: str) -> bool:
+    """Whether ``pipeline`` has a row for the shape at ``path`` under ``condition``: the mesh
+    reference only for a clean 3D mesh."""
+    return pipeline != "mesh" or (condition == "clean" and Path(path).suffix.lower() in MESH_SUFFIXES)
+
+
+FUNCTIONS = {"today": today, "sor": sor, "robust": robust, "mesh": mesh}
 
 
 # --- one case: a shape under one condition, every pipeline -------------------------------------------------------
@@ -273,13 +291,13 @@ def run_case(shape: str, path: str, condition: str, pipelines: tuple[str, ...], 
     dim = clean.shape[1]
     contour = dim == 2 and looks_like_contour(clean)
     rows = []
-    for pipeline in pipelines:
+    for pipeline in (p for p in pipelines if runs(p, path, condition) and (p != "mesh" or faces is not None)):
         row = {"shape": shape, "dim": dim, "condition": condition, "noise": noise, "outliers": outliers,
                "pipeline": pipeline, "n_clean": len(drawn), "n": len(points), "n_planted": int(planted.sum()),
                "reference": "faces" if faces is not None else "contour" if contour else "points"}
         start = time.perf_counter()
         try:
-            result = FUNCTIONS[pipeline](points, dim, seed)
+            result = mesh(path, seed) if pipeline == "mesh" else FUNCTIONS[pipeline](points, dim, seed)
         except Exception as exc:  # noqa: BLE001 - a failed fit is a result of the experiment, kept in its row
             rows.append({**row, "status": "error", "error": f"{type(exc).__name__}: {exc}"[:300],
                          "seconds": time.perf_counter() - start})
@@ -316,7 +334,7 @@ def run(specs, conditions, pipelines, seed: int, jobs: int, json_path: Path, met
     import multiprocessing
 
     have = {(r["shape"], r["condition"], r["pipeline"]) for r in done}
-    cases = [(shape, path, c, tuple(p for p in pipelines if (shape, c, p) not in have))
+    cases = [(shape, path, c, tuple(p for p in pipelines if (shape, c, p) not in have and runs(p, path, c)))
              for shape, path in specs for c in conditions]
     cases = sorted((case for case in cases if case[3]), key=lambda case: -os.path.getsize(case[1]))
     rows = list(done)
@@ -432,21 +450,42 @@ def must_show(rows: list[dict], pipelines) -> list[str]:
             except TypeError:  # a condition this run did not include
                 cells.append("—")
         lines.append(f"| {text} | " + " | ".join(cells) + " |")
+    references = {r["shape"]: _f(r) for r in rows if r["pipeline"] == "mesh" and r["condition"] == "clean"}
+    if references:
+        cells = []
+        for p in pipelines:
+            pairs = [(r["shape"], _f(r) - references[r["shape"]]) for r in rows
+                     if r["pipeline"] == p != "mesh" and r["condition"] == "clean" and r["shape"] in references]
+            if not pairs:
+                cells.append("—")
+                continue
+            below = [shape for shape, gap in pairs if gap < -AS_GOOD]
+            worst = min(pairs, key=lambda pair: pair[1])
+            cells.append(cell(not below, f"{len(below)} of {len(pairs)} below"
+                                         + (f", worst {worst[1]:+.3f} ({worst[0]})" if below else "")))
+        lines.append(f"| clean bare cloud as good as its mesh (`mesh`): every shape's F at most {AS_GOOD:g} below "
+                     "the mesh fit's | " + " | ".join(cells) + " |")
     return lines
 
 
 def per_shape(rows: list[dict], conditions, pipelines) -> list[str]:
     by = {(r["shape"], r["condition"], r["pipeline"]): r for r in rows}
     shapes = sorted({(r["dim"], r["shape"], r["n_clean"]) for r in rows})
-    lines = [f"*F-score per pipeline ({' / '.join(pipelines)}), against the clean shape*", "",
-             "| shape | dim | N | " + " | ".join(LABELS.get(c, c) for c in conditions) + " |",
-             "|---|---|---|" + "---|" * len(conditions)]
+    reference = "mesh" in pipelines  # its clean fit in a column of its own
+    pipelines = [p for p in pipelines if p != "mesh"]
+
+    def text(r: dict | None) -> str:
+        return "·" if r is None else "fail" if r.get("status") != "ok" else \
+            f"{r['f_score']:.2f}" + ("*" if _beyond_specks(r) else "")
+
+    lines = [f"*F-score per pipeline ({' / '.join(pipelines)}), against the clean shape*"
+             + ("; *mesh*: the clean mesh's own fit" if reference else ""), "",
+             "| shape | dim | N | " + " | ".join(LABELS.get(c, c) for c in conditions) + " |" + " mesh |" * reference,
+             "|---|---|---|" + "---|" * (len(conditions) + reference)]
     for dim, shape, n in shapes:
-        cells = []
-        for c in conditions:
-            got = [by.get((shape, c, p)) for p in pipelines]
-            cells.append(" / ".join("·" if r is None else "fail" if r.get("status") != "ok" else
-                                    f"{r['f_score']:.2f}" + ("*" if _beyond_specks(r) else "") for r in got))
+        cells = [" / ".join(text(by.get((shape, c, p))) for p in pipelines) for c in conditions]
+        if reference:
+            cells.append(text(by.get((shape, "clean", "mesh"))))
         lines.append(f"| {shape} | {dim}D | {n} | " + " | ".join(cells) + " |")
     return lines + ["", "`*`: spurious components beyond specks; `fail`: the pipeline raised (the JSON has the error)."]
 
@@ -465,7 +504,11 @@ def markdown(meta: dict, rows: list[dict]) -> str:
         "sor": f"* **sor**: statistical outlier removal as Open3D's `remove_statistical_outlier(nb_neighbors="
                f"{SOR_NEIGHBOURS}, std_ratio={SOR_STD_RATIO:g})` ({meta['open3d_check']}), then today's pipeline;",
         "robust": "* **robust**: `fit_adaptive(points, outliers=\"auto\")`"
-                  + ("." if "robust" in pipelines else f" — {meta.get('robust_note', 'not run')}."),
+                  + (";" if "mesh" in pipelines else "." if "robust" in pipelines
+                     else f" — {meta.get('robust_note', 'not run')}."),
+        "mesh": "* **mesh**, for reference: the clean mesh itself, `fit_adaptive(ipfit.load(FILE))` (`ipfit fit MESH`: "
+                "its vertices with their normals and faces; not the drawn points), the fit a bare cloud is "
+                "measured against (\"as good as meshes\"), clean 3D shapes only.",
     }
     lines = [
         "# Real clouds: outliers, noise and no normals",
@@ -480,11 +523,13 @@ def markdown(meta: dict, rows: list[dict]) -> str:
         "with Gaussian noise of σ = 0.5% or 1% of the box diagonal, or 10%, 25% or 40% of the point count added as "
         "outliers uniform in the bounding box grown by 20% on each side; the seed fixed by the file name and the "
         f"settings ({meta['corrupt_check']}). Each fit is scored against the *clean* shape by "
-        "`ipfit.zeroset.quality.quality` (τ = 2% of the box diagonal; a contour's segments, a mesh's faces); spurious "
-        "components are counted beyond specks (`ipfit.degree.rules.is_speck`). A pipeline that raised counts as F = 0."),
+        "`ipfit.zeroset.quality.quality` (τ = 2% of the box diagonal; a contour's segments, a mesh's faces); "
+        "spurious components are counted beyond specks (`ipfit.degree.rules.is_speck`). A pipeline that raised "
+        "counts as F = 0."),
         "",
         *([f"Where the shapes come from: {meta['source']}", ""] if meta.get("source") else []),
-        *[text for name, text in described.items() if name in pipelines or (name == "robust" and meta.get("robust_note"))],
+        *[text for name, text in described.items()
+          if name in pipelines or (name == "robust" and meta.get("robust_note"))],
         "",
         ("*Outliers true / found*: the median planted share of the cloud, and of the points the pipeline set aside; "
         "*planted found*: the median share of the planted outliers among them; *false alarms*: the median share "
