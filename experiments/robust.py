@@ -508,7 +508,8 @@ def markdown(meta: dict, rows: list[dict]) -> str:
                      else f" — {meta.get('robust_note', 'not run')}."),
         "mesh": "* **mesh**, for reference: the clean mesh itself, `fit_adaptive(ipfit.load(FILE))` (`ipfit fit MESH`: "
                 "its vertices with their normals and faces; not the drawn points), the fit a bare cloud is "
-                "measured against (\"as good as meshes\"), clean 3D shapes only.",
+                "measured against (\"as good as meshes\"), clean 3D shapes only; its column of the criteria applies "
+                "them to the mesh fits, for reference.",
     }
     lines = [
         "# Real clouds: outliers, noise and no normals",
