@@ -571,6 +571,16 @@ def _machine() -> str:
     return f"{platform.machine()}, {cpu}, {os.cpu_count()} cores shared with other jobs"
 
 
+def _machines(stored: str | None, current: str) -> str:
+    """The processors a resumed page's rows were fitted on, in order: their last bits differ (BLAS
+    kernels), and with them a knife-edge fit's result."""
+    if not stored:
+        return current
+    arch, cpus, cores = stored.split(", ", 2)
+    cpu = current.split(", ", 2)[1]
+    return stored if cpu in cpus.split(" then ") else f"{arch}, {cpus} then {cpu}, {cores}"
+
+
 def _commit() -> str:
     try:
         head = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], capture_output=True,
@@ -660,6 +670,7 @@ def main(argv=None) -> int:
             meta["command"] = f"{stored['meta']['command']}` then `{meta['command']} --resume"
         if stored["meta"].get("commit") and stored["meta"]["commit"] != meta["commit"]:
             meta["commit"] = f"{stored['meta']['commit']} then {meta['commit']}"
+        meta["machine"] = _machines(stored["meta"].get("machine"), meta["machine"])
         meta["shapes"] = [*stored["meta"].get("shapes", []), *(s for s in meta["shapes"]
                                                              if s not in stored["meta"].get("shapes", []))]
     start = time.perf_counter()
