@@ -4,7 +4,7 @@ Usage::
 
     python experiments/normals_bare.py [--only NAME ...] [--fit] [--out FILE.md] [--turk DIR]
                                        [--meshes FILE ...] [--noise SIGMA] [--wide] [--known-noise]
-                                       [--samples N ...]
+                                       [--samples N ...] [--signs]
 
 For the 12 meshes of ``../shared/data/turk-dev`` (vertices as ``trimesh.load(f, force='mesh',
 process=True)`` merges them) and the bundled apple and duck (``ipfit.load``): per shape,
@@ -33,7 +33,9 @@ on the denoised coarse sample, even where no wider neighbourhood is flatter): co
 wide`` and, with ``--fit``, ``F wide`` (docs/normals-noise.md). ``--known-noise`` adds the estimate
 that ``fit_adaptive`` makes of a noisy cloud, given the noise's σ the outlier score finds
 (``ipfit.estimate_normals(points, noise=ipfit.robust.score_outliers(points).noise_scale)``):
-columns ``off60 σ`` and ``flip σ``, and with ``--fit``, ``F σ``.
+columns ``off60 σ`` and ``flip σ``, and with ``--fit``, ``F σ``. ``--signs`` (with ``--fit``) also fits
+the estimated normals with each sign made the reference's (``F signs``): what the signs alone cost
+a fit, against what the lines cost (``F signs`` against ``F mesh``).
 
 ``--samples N ...`` replaces each shape's vertices by N points drawn uniformly on its surface
 (``trimesh.sample.sample_surface``, seed 0), a row per shape and N: a dense scan of the object,
@@ -159,6 +161,8 @@ def main(argv=None) -> None:
     parser.add_argument("--wide", action="store_true", help="also the estimate with the noisy-data path forced")
     parser.add_argument("--known-noise", action="store_true",
                         help="also the estimate given the outlier score's noise scale, as fit_adaptive makes it")
+    parser.add_argument("--signs", action="store_true",
+                        help="with --fit: also the estimated lines with the reference's signs")
     parser.add_argument("--samples", type=int, nargs="*", default=[],
                         help="N points drawn on each mesh's surface instead of its vertices (a row per N)")
     args = parser.parse_args(argv)
@@ -166,7 +170,10 @@ def main(argv=None) -> None:
         parser.error("--samples draws clean points on the surface: not with --noise")
     cols = ["cos10", "cos25", "cos50", "cos75", "off60", "flip", "s"] + (["flip wide"] if args.wide else []) + \
         (["off60 σ", "flip σ"] if args.known_noise else [])
-    fits = ("mesh", "est") + (("wide",) if args.wide else ()) + (("σ",) if args.known_noise else ())
+    if args.signs and not args.fit:
+        parser.error("--signs is a fit's column: add --fit")
+    fits = ("mesh", "est") + (("signs",) if args.signs else ()) + (("wide",) if args.wide else ()) + \
+        (("σ",) if args.known_noise else ())
     fit_cols = [f"{key} {label}" for label in fits for key in ("F", "P", "R", "deg")]
     header = ["shape", "N"] + cols + (fit_cols if args.fit else [])
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
@@ -191,6 +198,9 @@ def main(argv=None) -> None:
         row = compare(estimated, mesh_normals)
         row["s"] = time.perf_counter() - start
         normals = {"mesh": mesh_normals, "est": estimated}
+        if args.signs:
+            turned = np.einsum("ij,ij->i", estimated, mesh_normals) < 0
+            normals["signs"] = estimated * np.where(turned, -1.0, 1.0)[:, None]
         if args.wide:
             normals["wide"] = wide_estimate(points)
             row["flip wide"] = compare(normals["wide"], mesh_normals)["flip"]
@@ -228,7 +238,8 @@ def main(argv=None) -> None:
                   "same for the estimate given the noise's σ that the outlier score finds, as `fit_adaptive` makes "
                   "it (`estimate_normals(points, noise=score_outliers(points).noise_scale)`); *s*, seconds of "
                   "`estimate_normals`; with `--fit`, *F, P, R, deg* of `fit_adaptive(points, normals, rng=0, outliers=\"none\")` "
-                  "with the mesh's (*mesh*), the estimated (*est*), the forced path's (*wide*) and the σ-given "
+                  "with the mesh's (*mesh*), the estimated (*est*), the estimated lines with the mesh's signs "
+                  "(*signs*), the forced path's (*wide*) and the σ-given "
                   "(*σ*) normals, scored "
                   "against the clean mesh. A noisy point's reference normal is its nearest clean vertex's; points "
                   "whose reference normal is zero (unreferenced vertices) are left out. Shapes: "
