@@ -191,7 +191,7 @@ def main(argv=None) -> None:
                 continue
             points, mesh_normals = drawn
         # an unreferenced vertex has no normal: no reference for it (or for a noisy point nearest it)
-        referenced = np.linalg.norm(mesh_normals, axis=1) > 0
+        referenced = np.linalg.norm(mesh_normals, axis=1) > 1e-9
         points, mesh_normals = points[referenced], mesh_normals[referenced]
         start = time.perf_counter()
         estimated = ipfit.estimate_normals(points)
