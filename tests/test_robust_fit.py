@@ -277,7 +277,7 @@ def test_bad_outlier_flags_exit_2_with_one_line(tmp_path, capsys, args, words):
 
 @pytest.mark.slow
 def test_a_big_bare_scan_with_strays_is_scored_and_fitted_on_samples_of_it(seed):
-    # 165,000 points: the outlier score's rounds on a random 131,072 of them, the degrees on
+    # 165,000 points: the outlier score's rounds on a random 65,536 of them, the degrees on
     # 50,000 spread evenly, the selected degree on every inlier; the strays are found and the
     # torus (R = 1, r = 0.4) is recovered.
     rng = np.random.default_rng(seed)

@@ -86,8 +86,9 @@ _EVIDENCE_SCORE = 3.0
 _EVIDENCE_SHARE = 0.02
 # Above this many distinct points the reference surfaces are found on a random sample of this
 # many (see _big), then every point is scored once against them: the rounds on all of a
-# 10⁶-point scan took 34 s, a third of its fit.
-_REFERENCE_POINTS = 1 << 17
+# 10⁶-point scan took 34 s, a third of its fit. 65,536 find the same strays as 131,072 in half
+# the time (benchmarks/bench_score_sample.py, docs/performance.md).
+_REFERENCE_POINTS = 1 << 16
 
 
 def _frozen(a: NDArray) -> NDArray:
@@ -321,15 +322,15 @@ def score_outliers(points: ArrayLike, *, outliers="auto", k: int | None = None,
     out) is compared with the noise scale, estimated from the same offsets; density picks the
     first samples. See the module notes for the steps and :class:`OutlierScore` for the result.
     Nothing but the points is used: no normals, no order. The result does not depend on the
-    points' order, position, orientation or units. Above 131,072 distinct points the reference
-    surfaces are found on a random 131,072 of them (fixed seed) and every point is scored once
+    points' order, position, orientation or units. Above 65,536 distinct points the reference
+    surfaces are found on a random 65,536 of them (fixed seed) and every point is scored once
     against them: the result still does not depend on the order, but which points that sample
     holds, and so a score near the threshold, can change with the position, orientation or units.
     There 'auto' decides on the sample whether strays are evidence when the sample is clear
-    (under 1 % of it beyond 3, half the evidence share: a random sample of 131,072 that shows
-    under 1 % where the cloud has 2 % is practically impossible), and ``score`` and
-    ``spacing``, which the weights then do not need, are computed when first asked for (3-4 s
-    of a 10⁶-point scan's fit).
+    (under 1 % of it beyond 3, half the evidence share: a random sample of 65,536 that shows
+    under 1 % where the cloud has 2 % is practically impossible, 18 standard deviations off), and
+    ``score`` and ``spacing``, which the weights then do not need, are computed when first asked
+    for (seconds of a 10⁶-point scan's fit).
 
     Parameters
     ----------
