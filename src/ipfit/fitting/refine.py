@@ -67,11 +67,10 @@ __all__ = ["refine", "RefineResult", "REFINE_METHODS", "robust_scale"]
 
 # Full-cloud L-BFGS iterations after a subsampled polish (see _polish): FULL_POLISH_ITERATIONS up
 # to FULL_POLISH_POINTS points, proportionally fewer beyond (at least FULL_POLISH_MIN). Measured:
-# at 10⁶ points 100 full iterations took minutes per degree; a 10⁶-point scan's degrees on its
-# 50,000-point subsample took 2.8 s less with 50 than with 100, at the same F-score (0.999), and
-# the bunny (35,947 points, 69) the same time and F-score (docs/performance.md).
+# at 10⁶ points 100 full iterations took minutes per degree; half as many up to 50,000 points
+# cost a hard dense cloud most of its fit (the Turk spider's 50,000 samples: F 0.96 -> 0.61).
 FULL_POLISH_ITERATIONS = 100
-FULL_POLISH_POINTS = 25_000
+FULL_POLISH_POINTS = 50_000
 FULL_POLISH_MIN = 5
 # Two unit coefficient vectors closer than this count as the same solution.
 _DISTINCT = 1e-3
