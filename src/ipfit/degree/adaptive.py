@@ -54,6 +54,7 @@ from ..fitting.refine import refine
 from ..geometry.sampling import spread_subsample
 from ..normals import estimate_normals
 from ..normals.estimate import looks_noisy
+from ..normals.rims import round_rims
 from ..polynomial import ImplicitPolynomial, Normalization
 from ..robust import OutlierScore, check_outliers, score_outliers
 from ..zeroset.quality import Quality, looks_like_contour, quality
@@ -770,6 +771,13 @@ def _degree_loop(cloud: Cloud, unit, settings: _LoopSettings, generator) -> _Loo
     # the selected one is measured on every point after the loop.
     work, work_unit = _working_cloud(cloud, unit, options if method in REFINE_METHODS else None)
     measured = rule.measured
+    if measured and work.dim == 3 and work.faces is None:
+        # a scan's face-like normals leave the zero set free to run on past a thin part's rim (a
+        # mesh's vertex normals are rounded there already): docs/rims.md
+        rounded, turn = round_rims(work.points, work.oriented, weights=work.weights, return_turn=True)
+        if turn.any():
+            work_unit = rounded
+            work = Cloud._checked(work.points, as_normals(rounded, work.points), None, work.weights)
     fitter = _Fitter(method, options if method in REFINE_METHODS else None, delta, generator, progress,
                      settings.noise)
     degrees = list(range(min_degree, top + 1, 2)) if top > min_degree else [min_degree]
