@@ -34,19 +34,23 @@ __all__ = ["round_rims", "RIM_RADIUS"]
 #: so that the offsets on the two sides of a thin part do not meet past its rim; about 2.5 % of a
 #: compact shape's box diagonal, a coarse mesh's edge (the Turk dolphins' is 0.10).
 RIM_RADIUS = 0.1
-# The centroid's displacement along the tangent plane, as a share of the radius: at the edge of
-# a uniformly sampled half-disc it is 4/(3π) ≈ 0.42, inside a full disc 0 up to the sampling's
-# noise, about 0.6/√(points within the radius). The normal starts turning at _START above that
-# noise and has turned fully _RAMP further.
-_START = 0.05
-_RAMP = 0.25
-_NOISE = 0.6
-# Fewer points within the radius than _FEWEST: no turn (their centroid is noise); full turns from
-# twice as many.
+# A point at a rim sees its neighbours, projected on its tangent plane, on one side of it: the
+# largest angle between two consecutive ones is 180° at the rim (the other side of a thin part
+# lies on the same side) and 2·acos(d / radius) at a distance d inside it. The turn grows from 0
+# at a gap of _START to full at 180°, where the gap is not the sampling's chance: among n uniform
+# directions a gap of a share g of the circle or more has probability about n·(1 - g)^(n-1),
+# which must be below _CHANCE (at 180°: 0.6 % with 12 neighbours, 1.4 % with 24 at 120°).
+_START = np.radians(120.0)
+_CHANCE = 0.01
 _FEWEST = 8
-# The neighbours counted (the nearest within the radius): enough for the centroid's noise to be
-# small next to a rim's displacement.
-_MOST_NEIGHBOURS = 96
+# A point turns only when at least _RIM_NEIGHBOURS of its _ALONG_RIM nearest points turn too.
+_ALONG_RIM = 8
+_RIM_NEIGHBOURS = 2
+# Neighbours nearly along the normal (the other face of a thin part, right behind the point) have
+# no direction on the tangent plane: left out below this share of their distance.
+_ALONG = 0.3
+# The neighbours counted (the nearest within the radius).
+_MOST_NEIGHBOURS = 48
 # A mesh's vertices are spread unevenly (small triangles where the shape bends, long ones where
 # it is flat): their centroid moves without a rim, and their normals are a mesh's, rounded. The
 # spacing's spread (p90 / p10 of the distance to the 8th nearest) is 1.6-1.8 on the surface
@@ -57,6 +61,35 @@ _UNEVEN = 2.0
 # The statistics are taken on an even sample of at most this many points, each point taking its
 # nearest sample point's: the displacement is a property of the surface at the radius' scale.
 _SAMPLE = 20_000
+
+
+def _widest_gaps(sample, normals, idx, dist, within):
+    """Per point, the turn (0-1) from the widest angle between its neighbours on its tangent
+    plane, and the unit direction bisecting that angle (outward, where the points end)."""
+    helper = np.where(np.abs(normals[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+    e1 = unit_rows(np.cross(normals, helper))
+    e2 = np.cross(normals, e1)
+    offset = sample[idx] - sample[:, None, :]
+    a, b = np.einsum("ijk,ik->ij", offset, e1), np.einsum("ijk,ik->ij", offset, e2)
+    valid = within & (np.hypot(a, b) > _ALONG * np.where(within, dist, 0.0))
+    angle = np.sort(np.where(valid, np.arctan2(b, a), np.inf), axis=1)
+    count = valid.sum(axis=1)
+    rows = np.arange(len(sample))
+    last = angle[rows, np.maximum(count - 1, 0)]
+    with np.errstate(invalid="ignore"):  # inf - inf past each row's last neighbour, masked below
+        steps = np.diff(angle, axis=1)
+    steps[np.arange(steps.shape[1])[None, :] >= (count - 1)[:, None]] = -np.inf
+    gaps = np.column_stack([steps, angle[:, 0] + 2 * np.pi - last])
+    widest = np.argmax(gaps, axis=1)
+    gap = gaps[rows, widest]
+    inner = widest < steps.shape[1]
+    start = np.where(inner, angle[rows, np.minimum(widest, steps.shape[1] - 1)], last)
+    bisector = start + gap / 2
+    turn = np.clip((gap - _START) / (np.pi - _START), 0.0, 1.0)
+    chance = count * (1.0 - gap / (2 * np.pi)) ** np.maximum(count - 1, 0)
+    turn[(count < _FEWEST) | (chance > _CHANCE)] = 0.0
+    direction = np.cos(bisector)[:, None] * e1 + np.sin(bisector)[:, None] * e2
+    return turn, direction
 
 
 def _even(tree: cKDTree, workers: int) -> bool:
@@ -84,8 +117,8 @@ def round_rims(points: ArrayLike, normals: ArrayLike, radius: float = RIM_RADIUS
     radius : float
         The rounding radius in normalised units (:class:`~ipfit.Normalization`).
     weights : (N,) array, optional
-        Per-point weights in [0, 1]: the neighbours' centroid is weighted by them (a stray the
-        outlier score found does not displace it).
+        Per-point weights in [0, 1]: neighbours weighing less than 1/2 are left out (a stray the
+        outlier score found does not fill a rim's empty side).
     workers : int
         Threads for the neighbour search: -1 for all cores, or a positive number.
     return_turn : bool
@@ -133,18 +166,14 @@ def round_rims(points: ArrayLike, normals: ArrayLike, radius: float = RIM_RADIUS
         return (nrm, np.zeros(len(nrm))) if return_turn else nrm
     dist, idx = tree.query(sample, k=min(_MOST_NEIGHBOURS, len(sample)), distance_upper_bound=radius,
                            workers=workers)
-    within = np.isfinite(dist)
+    within = np.isfinite(dist) & (dist > 0)
     idx = np.where(within, idx, 0)
-    mass = within.astype(float) if w is None else np.where(within, w[pick][idx], 0.0)
-    total = mass.sum(axis=1)
-    count = within.sum(axis=1)
-    centroid = np.einsum("ij,ijk->ik", mass, sample[idx]) / np.maximum(total, 1e-300)[:, None]
-    offset = sample - centroid
-    tangent = offset - np.einsum("ij,ij->i", offset, sample_normals)[:, None] * sample_normals
-    shift = np.linalg.norm(tangent, axis=1) / radius
-    turn = np.clip((shift - _NOISE / np.sqrt(np.maximum(count, 1)) - _START) / _RAMP, 0.0, 1.0)
-    turn *= np.clip((count - _FEWEST) / _FEWEST, 0.0, 1.0)
-    turn[total <= 0] = 0.0
+    if w is not None:
+        within &= w[pick][idx] >= 0.5
+    turn, tangent = _widest_gaps(sample, sample_normals, idx, dist, within)
+    # a rim is a line of such points; one alone is the sampling's chance (1 in 1/_CHANCE)
+    nearest_turned = np.sum(within[:, :_ALONG_RIM + 1] & (turn[idx[:, :_ALONG_RIM + 1]] > 0), axis=1)
+    turn[nearest_turned < _RIM_NEIGHBOURS] = 0.0
     # every point takes its nearest sample point's turn and direction, in its own tangent plane
     nearest = np.arange(len(u)) if len(pick) == len(u) else tree.query(u, workers=workers)[1]
     direction = tangent[nearest]
