@@ -79,12 +79,13 @@ def _widest_gaps(sample, normals, idx, dist, within):
     with np.errstate(invalid="ignore"):  # inf - inf past each row's last neighbour, masked below
         steps = np.diff(angle, axis=1)
     steps[np.arange(steps.shape[1])[None, :] >= (count - 1)[:, None]] = -np.inf
-    gaps = np.column_stack([steps, angle[:, 0] + 2 * np.pi - last])
+    wrap = np.where(count > 0, angle[:, 0] - np.where(count > 0, last, 0.0), 0.0) + 2 * np.pi
+    gaps = np.column_stack([steps, wrap])
     widest = np.argmax(gaps, axis=1)
     gap = gaps[rows, widest]
     inner = widest < steps.shape[1]
     start = np.where(inner, angle[rows, np.minimum(widest, steps.shape[1] - 1)], last)
-    bisector = start + gap / 2
+    bisector = np.where(count > 0, start + gap / 2, 0.0)
     turn = np.clip((gap - _START) / (np.pi - _START), 0.0, 1.0)
     chance = count * (1.0 - gap / (2 * np.pi)) ** np.maximum(count - 1, 0)
     turn[(count < _FEWEST) | (chance > _CHANCE)] = 0.0
@@ -117,8 +118,9 @@ def round_rims(points: ArrayLike, normals: ArrayLike, radius: float = RIM_RADIUS
     radius : float
         The rounding radius in normalised units (:class:`~ipfit.Normalization`).
     weights : (N,) array, optional
-        Per-point weights in [0, 1]: neighbours weighing less than 1/2 are left out (a stray the
-        outlier score found does not fill a rim's empty side).
+        Per-point weights in [0, 1]: points weighing less than 1/2 are left out of the rims'
+        statistics (a stray the outlier score found does not fill a rim's empty side) and take
+        their nearest other point's turn.
     workers : int
         Threads for the neighbour search: -1 for all cores, or a positive number.
     return_turn : bool
@@ -159,7 +161,10 @@ def round_rims(points: ArrayLike, normals: ArrayLike, radius: float = RIM_RADIUS
     workers = check_workers(workers)
     w = None if weights is None else as_weights(weights, len(pts))
     u = Normalization.from_points(pts).apply(pts)
-    pick = spread_subsample(u, _SAMPLE) if len(u) > _SAMPLE else np.arange(len(u))
+    trusted = np.arange(len(u)) if w is None else np.flatnonzero(w >= 0.5)
+    pick = trusted[spread_subsample(u[trusted], _SAMPLE)] if len(trusted) > _SAMPLE else trusted
+    if len(pick) <= _SPACING_K:
+        return (nrm, np.zeros(len(nrm))) if return_turn else nrm
     sample, sample_normals = u[pick], nrm[pick]
     tree = cKDTree(sample)
     if not _even(tree, workers):
@@ -168,8 +173,6 @@ def round_rims(points: ArrayLike, normals: ArrayLike, radius: float = RIM_RADIUS
                            workers=workers)
     within = np.isfinite(dist) & (dist > 0)
     idx = np.where(within, idx, 0)
-    if w is not None:
-        within &= w[pick][idx] >= 0.5
     turn, tangent = _widest_gaps(sample, sample_normals, idx, dist, within)
     # a rim is a line of such points; one alone is the sampling's chance (1 in 1/_CHANCE)
     nearest_turned = np.sum(within[:, :_ALONG_RIM + 1] & (turn[idx[:, :_ALONG_RIM + 1]] > 0), axis=1)
