@@ -770,7 +770,9 @@ def _degree_loop(cloud: Cloud, unit, settings: _LoopSettings, generator) -> _Loo
     # A big cloud's degrees are fitted on an even subsample of it (SearchOptions.fit_points);
     # the selected one is measured on every point after the loop.
     work, work_unit = _working_cloud(cloud, unit, options if method in REFINE_METHODS else None)
+    subsample = work is not cloud
     measured = rule.measured
+    rims: tuple[str, ...] = ()  # what the message says of the normals' rims
     if measured and work.dim == 3 and work.faces is None:
         # a scan's face-like normals leave the zero set free to run on past a thin part's rim (a
         # mesh's vertex normals are rounded there already): docs/rims.md
@@ -778,6 +780,8 @@ def _degree_loop(cloud: Cloud, unit, settings: _LoopSettings, generator) -> _Loo
         if turn.any():
             work_unit = rounded
             work = Cloud._checked(work.points, as_normals(rounded, work.points), None, work.weights)
+            rims = (f"the normals of {np.count_nonzero(turn):,} points ({np.mean(turn > 0):.0%}) turned outward over "
+                    "thin rims",)
     fitter = _Fitter(method, options if method in REFINE_METHODS else None, delta, generator, progress,
                      settings.noise)
     degrees = list(range(min_degree, top + 1, 2)) if top > min_degree else [min_degree]
@@ -869,7 +873,7 @@ def _degree_loop(cloud: Cloud, unit, settings: _LoopSettings, generator) -> _Loo
     if aside is not None:
         results.append(dataclasses.replace(aside, reason=f"tried after the rule's stop, for the data's topology: "
                                                          f"{_mismatch(aside)}"))
-    if work is not cloud and reason != "interrupted":
+    if subsample and reason != "interrupted":
         sampled = f"degrees fitted on {len(work):,} of the {len(cloud):,} points spread evenly"
         try:
             if progress is not None:
@@ -880,7 +884,7 @@ def _degree_loop(cloud: Cloud, unit, settings: _LoopSettings, generator) -> _Loo
         except KeyboardInterrupt:  # the subsample's fit stands, as a degree finished in the loop does
             reason = "interrupted"
             message = f"{message}; {sampled}; interrupted while measuring degree {results[index].degree} on every point"
-    return _Loop(results, index, reason, message)
+    return _Loop(results, index, reason, "; ".join((message, *rims)))
 
 
 def _variants(results: list[DegreeResult], unrepaired: list, rule: DegreeRule, fitter: _Fitter, work: Cloud,
