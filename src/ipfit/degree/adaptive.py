@@ -780,8 +780,8 @@ def _degree_loop(cloud: Cloud, unit, settings: _LoopSettings, generator) -> _Loo
         if turn.any():
             work_unit = rounded
             work = Cloud._checked(work.points, as_normals(rounded, work.points), None, work.weights)
-            rims = (f"the normals of {np.count_nonzero(turn):,} points ({np.mean(turn > 0):.0%}) turned outward over "
-                    "thin rims",)
+            turned = f"the normals of {np.count_nonzero(turn):,} points ({np.mean(turn > 0):.0%})"
+            rims = (f"{turned} turned outward over thin rims",)
     fitter = _Fitter(method, options if method in REFINE_METHODS else None, delta, generator, progress,
                      settings.noise)
     degrees = list(range(min_degree, top + 1, 2)) if top > min_degree else [min_degree]
