@@ -107,11 +107,14 @@ def _counting(monkeypatch):
     return calls
 
 
-def test_the_recommended_fit_of_a_bare_3d_cloud_rounds_its_rims_and_a_mesh_or_the_paper_does_not(monkeypatch):
+def test_the_recommended_fit_rounds_the_normals_it_estimated_and_no_others(monkeypatch):
     calls = _counting(monkeypatch)
     apple = ipfit.load("apple")
-    ipfit.fit_adaptive(apple, max_degree=2, rng=0)  # a mesh: its vertex normals are rounded already
-    ipfit.fit_adaptive(np.asarray(apple.points), np.asarray(apple.unit_normals), max_degree=2, rng=0, rule="paper")
+    points = np.asarray(apple.points)
+    ipfit.fit_adaptive(apple, max_degree=2, rng=0)  # a mesh: its vertex normals are its own
+    ipfit.fit_adaptive(points, np.asarray(apple.unit_normals), max_degree=2, rng=0)  # given normals
+    ipfit.fit_adaptive(points, max_degree=2, rng=0, rule="paper")  # the paper's pipeline
+    ipfit.fit_adaptive(points[:, :2] + 0.01 * points[:, 2:], max_degree=2, rng=0)  # 2D
     assert calls == []
-    ipfit.fit_adaptive(np.asarray(apple.points), np.asarray(apple.unit_normals), max_degree=2, rng=0)
-    assert calls == [len(apple.points)]
+    ipfit.fit_adaptive(points, max_degree=2, rng=0)
+    assert calls and set(calls) == {len(points)}

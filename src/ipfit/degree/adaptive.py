@@ -514,8 +514,10 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
     cloud = Cloud._checked(pts, as_normals(unit, pts), faces, weights)
     if rule.measured and ordered_contour is None:
         ordered_contour = dim == 2 and looks_like_contour(pts)
+    # Normals the fit estimated turn outward over thin rims (docs/rims.md); given ones (a mesh's, a
+    # scanner's) are the user's: rounding a scanner's face normals gained as often as it lost there.
     settings = _LoopSettings(method, options, rule, epsilon, delta, min_degree, top, progress, noise,
-                             ordered_contour)
+                             ordered_contour, rims=rule.measured and dim == 3 and known is None)
     start = time.perf_counter()
     # 3D clouds whose normals were estimated: their signs are fitted again (see _reoriented) when
     # the rule measures the fits that the second pass must beat, and the cloud looks noisy or its
@@ -595,6 +597,7 @@ class _LoopSettings:
     progress: Callable[[dict], None] | None
     noise: float | None
     ordered_contour: bool | None
+    rims: bool = False  # the loop turns the normals outward over thin rims (normals.rims)
 
 
 @dataclass(frozen=True)
@@ -773,9 +776,9 @@ def _degree_loop(cloud: Cloud, unit, settings: _LoopSettings, generator) -> _Loo
     subsample = work is not cloud
     measured = rule.measured
     rims: tuple[str, ...] = ()  # what the message says of the normals' rims
-    if measured and work.dim == 3 and work.faces is None:
-        # a scan's face-like normals leave the zero set free to run on past a thin part's rim (a
-        # mesh's vertex normals are rounded there already): docs/rims.md
+    if settings.rims:
+        # estimated normals are a dense scan's faces': they leave the zero set free to run on past
+        # a thin part's rim (docs/rims.md)
         rounded, turn = round_rims(work.points, work.oriented, weights=work.weights, return_turn=True)
         if turn.any():
             work_unit = rounded

@@ -19,6 +19,8 @@ Modules, in the order a point cloud goes through them:
 * :mod:`.scale` -- noisy data: per-point neighbourhood size, orientation on a coarser sample;
 * :mod:`.orient` -- :func:`orient_normals`: sign propagation on the neighbour graph (and, for
   sparse clouds, the winding number's vote);
+* :mod:`.rims` -- dense scans: normals turned outward over thin rims, as a mesh's vertex normals
+  are, for the fit (:func:`~ipfit.normals.rims.round_rims`);
 * :mod:`.compare` -- :func:`normal_agreement`.
 """
 

@@ -23,9 +23,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
-from .._utils.numeric import unit_rows
+from .._utils.numeric import row_norms, unit_rows
 from .._utils.validation import as_matching, as_points, as_weights, check_positive, error
-from .local import check_workers
+from .local import check_workers, spread
 
 __all__ = ["round_rims", "RIM_RADIUS"]
 
@@ -150,9 +150,6 @@ def round_rims(points: ArrayLike, normals: ArrayLike, radius: float = RIM_RADIUS
     >>> bool(turn[edge].min() > 0.5), bool(out[edge, 0].min() > 0.7)
     (True, True)
     """
-    from ..geometry.sampling import spread_subsample
-    from ..polynomial import Normalization
-
     pts = as_points(points)
     if pts.shape[1] != 3:
         raise error("points", "3D points (rims are a surface's)", f"{pts.shape[1]}D points")
@@ -160,11 +157,14 @@ def round_rims(points: ArrayLike, normals: ArrayLike, radius: float = RIM_RADIUS
     radius = check_positive(radius, "radius")
     workers = check_workers(workers)
     w = None if weights is None else as_weights(weights, len(pts))
-    u = Normalization.from_points(pts).apply(pts)
+    # in the fit's normalised units (ipfit.Normalization: centred, the mean distance to the centre 1)
+    u = pts - pts.mean(axis=0)
+    scale = float(row_norms(u).mean())
     trusted = np.arange(len(u)) if w is None else np.flatnonzero(w >= 0.5)
-    pick = trusted[spread_subsample(u[trusted], _SAMPLE)] if len(trusted) > _SAMPLE else trusted
-    if len(pick) <= _SPACING_K:
+    pick = trusted[spread(u[trusted], _SAMPLE)]
+    if not scale > 0 or len(pick) <= _SPACING_K:
         return (nrm, np.zeros(len(nrm))) if return_turn else nrm
+    u /= scale
     sample, sample_normals = u[pick], nrm[pick]
     tree = cKDTree(sample)
     if not _even(tree, workers):
