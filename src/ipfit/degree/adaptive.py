@@ -431,6 +431,12 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
     the first fit's zero set, the sign of that fit's gradient; it is kept when it measures
     better (as the weights' variant above), the ``message`` saying which.
 
+    Normals a measured rule's fit of a 3D cloud estimated itself are turned outward over thin
+    rims before the degree loop (:func:`ipfit.round_rims`: on a dense, evenly
+    spread cloud, where a point's neighbours leave a wide empty angle on its tangent plane), as a
+    mesh's vertex normals are; without it the zero set runs on past a fin's or a wing's rim
+    (docs/rims.md). Given normals are kept as given; the ``message`` says how many turned.
+
     The paper's exact pipeline is ``fit_adaptive(points, normals, method=PAPER_METHOD,
     options=PAPER, rule=PAPER_RULE, outliers="none")`` (what ``ipfit fit --paper`` runs). Ctrl-C
     (KeyboardInterrupt) during a degree ends the loop: the degrees already finished are kept

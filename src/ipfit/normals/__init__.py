@@ -20,7 +20,7 @@ Modules, in the order a point cloud goes through them:
 * :mod:`.orient` -- :func:`orient_normals`: sign propagation on the neighbour graph (and, for
   sparse clouds, the winding number's vote);
 * :mod:`.rims` -- dense scans: normals turned outward over thin rims, as a mesh's vertex normals
-  are, for the fit (:func:`~ipfit.normals.rims.round_rims`);
+  are, for the fit (:func:`round_rims`);
 * :mod:`.compare` -- :func:`normal_agreement`.
 """
 
@@ -30,11 +30,13 @@ from .compare import Agreement, normal_agreement
 from .estimate import contour_normals, estimate_normals
 from .local import DEFAULT_K
 from .orient import orient_normals
+from .rims import round_rims
 
 __all__ = [
     "DEFAULT_K",
     "estimate_normals",
     "orient_normals",
+    "round_rims",
     "contour_normals",
     "normal_agreement",
     "Agreement",

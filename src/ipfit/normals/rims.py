@@ -1,6 +1,6 @@
 """Normals rounded over thin rims and sharp creases, as a mesh's vertex normals are.
 
-A dense scan's normals (a scanner's, or :func:`~ipfit.normals.estimate_normals`') are those of
+A dense scan's normals (a scanner's, or :func:`~ipfit.estimate_normals`') are those of
 its faces: on a thin part (a fin, a wing, a blade) they point to either side right up to its
 rim. A polynomial's zero set is smooth, and normals that say nothing about where a thin part
 ends leave it free to run on past the rim: fitted with its face normals, a dense sample of the
@@ -30,7 +30,7 @@ from .local import check_workers, spread
 __all__ = ["round_rims", "RIM_RADIUS"]
 
 #: The rounding radius, in the units of :class:`~ipfit.Normalization` (the data's mean distance
-#: to their centre is 1): twice the 3L offset (:data:`~ipfit.fitting.linear.DEFAULT_OFFSET`),
+#: to their centre is 1): twice the 3L offset (``ipfit.fitting.linear.DEFAULT_OFFSET``),
 #: so that the offsets on the two sides of a thin part do not meet past its rim; about 2.5 % of a
 #: compact shape's box diagonal, a coarse mesh's edge (the Turk dolphins' is 0.10).
 RIM_RADIUS = 0.1
