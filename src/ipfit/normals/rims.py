@@ -1,20 +1,18 @@
 """Normals rounded over thin rims and sharp creases, as a mesh's vertex normals are.
 
-A dense scan's normals (a scanner's, or :func:`~ipfit.estimate_normals`') are those of
-its faces: on a thin part (a fin, a wing, a blade) they point to either side right up to its
-rim. A polynomial's zero set is smooth, and normals that say nothing about where a thin part
-ends leave it free to run on past the rim: fitted with its face normals, a dense sample of the
-Turk dolphins' surface gives F 0.58, with the normals interpolated from its mesh's vertex normals
-(which turn outward over the rim, within one edge of it) 0.93; the 5 % of the points where the
-two differ by more than 60° decide it (docs/rims.md).
+A dense scan's normals as :func:`~ipfit.estimate_normals` finds them are those of its faces: on a
+thin part (a fin, a wing, a blade) they point to either side right up to its rim. A polynomial's
+zero set is smooth, and normals that say nothing about where a thin part ends leave it free to run
+on past the rim. On 5,000 points drawn on the Turk dolphins' surface, their face normals give F
+0.58; the same normals rounded here 0.91, interpolated from the mesh's vertex normals (which turn
+outward over the rim within one edge of it) 0.94 (docs/rims.md).
 
 :func:`round_rims` turns the normals near a rim outward over it without a mesh: a point whose
-neighbours within the rounding radius lie to one side of it along its tangent plane (their
-centroid displaced from it, as at the edge of a half-disc) is at a rim or crease, and its normal
-turns towards the side where the points end, the more the farther the centroid is displaced. The
-radius is about a coarse mesh's edge: the points within it must be many (the displacement of a
-few scattered points is noise) and spread evenly (uneven spacing moves the centroid too, as on a
-mesh's vertices), so sparse and unevenly sampled clouds keep their normals.
+neighbours, seen on its tangent plane, leave a wide empty angle (at a rim, all of them lie on one
+side: the other face of a thin part too) turns its normal towards the middle of that angle, the
+more the wider it is. A wide angle by the sampling's chance, or at a point alone, is no rim; the
+cloud must be dense and evenly spread (uneven spacing leaves empty angles too, as on a mesh's
+vertices), else the normals are kept.
 """
 
 from __future__ import annotations
@@ -39,7 +37,7 @@ RIM_RADIUS = 0.1
 # lies on the same side) and 2·acos(d / radius) at a distance d inside it. The turn grows from 0
 # at a gap of _START to full at 180°, where the gap is not the sampling's chance: among n uniform
 # directions a gap of a share g of the circle or more has probability about n·(1 - g)^(n-1),
-# which must be below _CHANCE (at 180°: 0.6 % with 12 neighbours, 1.4 % with 24 at 120°).
+# which must be below _CHANCE (180° among 12 neighbours: 0.6 %; 120° among 24: 0.2 %).
 _START = np.radians(120.0)
 _CHANCE = 0.01
 _FEWEST = 8
@@ -52,14 +50,14 @@ _ALONG = 0.3
 # The neighbours counted (the nearest within the radius).
 _MOST_NEIGHBOURS = 48
 # A mesh's vertices are spread unevenly (small triangles where the shape bends, long ones where
-# it is flat): their centroid moves without a rim, and their normals are a mesh's, rounded. The
-# spacing's spread (p90 / p10 of the distance to the 8th nearest) is 1.6-1.8 on the surface
-# samples of the 23 development and external meshes, 2.0-8.7 on the vertices of 21 of them
-# (regular remeshes, fandisk and cheburashka, 1.3 and 1.8): docs/rims.md.
+# it is flat): they leave wide empty angles without a rim. The spacing's spread (p90 / p10 of the
+# distance to the 8th nearest) is 1.6-1.8 on the 5,000-point scans of the 21 meshes of
+# docs/rims.md, 2.0-8.7 on the vertices of 19 of them (the regular remeshes fandisk and
+# cheburashka: 1.3 and 1.8).
 _SPACING_K = 8
 _UNEVEN = 2.0
-# The statistics are taken on an even sample of at most this many points, each point taking its
-# nearest sample point's: the displacement is a property of the surface at the radius' scale.
+# The angles are taken on an even sample of at most this many points, each point taking its
+# nearest sample point's turn: a rim is a property of the surface at the radius' scale.
 _SAMPLE = 20_000
 
 
@@ -94,7 +92,7 @@ def _widest_gaps(sample, normals, idx, dist, within):
 
 
 def _even(tree: cKDTree, workers: int) -> bool:
-    """Whether the points are spread evenly enough for the centroid's displacement to mean a rim:
+    """Whether the points are spread evenly enough for an empty angle to mean a rim:
     the spacing (the distance to the :data:`_SPACING_K`-th nearest) of the widest-spaced tenth at
     most :data:`_UNEVEN` times that of the closest-spaced tenth."""
     if tree.n <= _SPACING_K:
