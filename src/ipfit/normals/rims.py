@@ -30,7 +30,7 @@ __all__ = ["round_rims", "RIM_RADIUS"]
 #: The rounding radius, in the units of :class:`~ipfit.Normalization` (the data's mean distance
 #: to their centre is 1): twice the 3L offset (``ipfit.fitting.linear.DEFAULT_OFFSET``),
 #: so that the offsets on the two sides of a thin part do not meet past its rim; about 2.5 % of a
-#: compact shape's box diagonal, a coarse mesh's edge (the Turk dolphins' is 0.10).
+#: compact shape's box diagonal, about a coarse mesh's edge.
 RIM_RADIUS = 0.1
 # A point at a rim sees its neighbours, projected on its tangent plane, on one side of it: the
 # largest angle between two consecutive ones is 180° at the rim (the other side of a thin part
