@@ -76,8 +76,8 @@ def _widest_gaps(sample, normals, idx, dist, within):
     last = angle[rows, np.maximum(count - 1, 0)]
     with np.errstate(invalid="ignore"):  # inf - inf past each row's last neighbour, masked below
         steps = np.diff(angle, axis=1)
+        wrap = np.where(count > 0, angle[:, 0] - last, 0.0) + 2 * np.pi
     steps[np.arange(steps.shape[1])[None, :] >= (count - 1)[:, None]] = -np.inf
-    wrap = np.where(count > 0, angle[:, 0] - np.where(count > 0, last, 0.0), 0.0) + 2 * np.pi
     gaps = np.column_stack([steps, wrap])
     widest = np.argmax(gaps, axis=1)
     gap = gaps[rows, widest]
