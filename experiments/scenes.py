@@ -373,7 +373,8 @@ def page(data: dict) -> str:
               "left out)."), "",
              "The segmentation has no setting to tune: stray returns set aside (`ipfit.score_outliers`), dominant "
              "planes removed by RANSAC (`skimage.measure.ransac`, inliers within 3 noise scales or one spacing, one "
-             "connected patch, not an object's face: its rim free of other points), each remaining point moved onto its own sheet (the plane of its 20 neighbours), "
+             "connected patch, not an object's face: its rim free of other points; other pieces lying on it join it), "
+             "each remaining point moved onto its own sheet (the plane of its 20 neighbours), "
              f"the points linked at {LINK_SPACINGS:g} × each point's local spacing by links that leave neither "
              f"point's plane by more than {NORMAL_SPACINGS:g} local spacing, and split into connected components; "
              f"a component of at most {ATTACH_SHARE:.0%} of a group within {ATTACH_LINKS:g} link distances joins it "

@@ -121,6 +121,28 @@ def test_a_floor_and_a_wall_are_both_supports(seed):
     assert np.mean(seg.labels[truth == 0] == 0) > 0.95
 
 
+@pytest.mark.parametrize("seed", [0, 1, 2])
+@pytest.mark.parametrize("noise", [0.0, 0.003])
+@pytest.mark.parametrize("n_far", [120, 800])
+def test_a_floor_in_two_pieces_is_one_plane(seed, noise, n_far):
+    """A floor seen in two pieces (a strip of it hidden, as behind a box): its largest patch is
+    removed first, and the other piece, too small to be a dominant plane of its own (120 points)
+    or found as one (800), lies on it: the floor, one plane, not an object or a second plane
+    (before: a flat object at the floor's height, or two planes)."""
+    rng = np.random.default_rng(seed)
+    ball = _sphere(rng, 900, [1.0, 0.0, 0.7], 0.6)
+    near = np.column_stack([rng.uniform(-1, 3, 2400), rng.uniform(-2, 2, 2400), np.zeros(2400)])
+    width = 1.4 * n_far / 800  # the far piece at the near one's density
+    far = np.column_stack([rng.uniform(3.6, 3.6 + width, n_far), rng.uniform(-2, 2, n_far), np.zeros(n_far)])
+    truth = np.concatenate([np.zeros(len(ball)), np.full(len(near) + len(far), -1)])
+    pts = np.vstack([ball, near, far]) + noise * rng.normal(size=(len(truth), 3))
+    seg = segment(pts, rng=seed)
+    assert len(seg.planes) == 1 and len(seg.objects) == 1
+    assert np.mean(truth[seg.objects[0].indices] == 0) > 0.97
+    assert np.mean(seg.kinds[len(ball) + len(near):] == PLANE) > 0.9  # the far piece is the floor
+    assert seg.planes[0].n_points == np.count_nonzero(seg.kinds == PLANE)
+
+
 @pytest.mark.parametrize("seed", [0, 3])
 def test_two_spheres_and_a_plane_fitted_radii_to_one_percent(seed):
     pts, _ = _two_spheres_on_a_plane(seed)

@@ -9,7 +9,9 @@ Five steps, each on a well-kept library:
    to their inliers by least squares and removed while each holds at least ``plane_share`` of the
    points still in play and is a support, not an object's face: a face's rim meets the object's
    other faces all round, a table's is the edge of the scan (3D only: in 2D a "plane" is a line,
-   and lines are what shapes are made of).
+   and lines are what shapes are made of). Other pieces of a removed plane (the floor beyond an
+   object that hides a strip of it, or between its legs) join it, whether RANSAC finds them as a
+   plane of their own or they are left as components lying on it.
 3. **Objects** are the connected components (``scipy.sparse.csgraph.connected_components``) of
    a graph on the points' surfaces. Each point gets a surface frame from its 20 nearest
    neighbours: the normal of their plane (PCA) and its position moved along it onto its own
@@ -50,7 +52,7 @@ from .._utils.validation import as_points, check_int, error
 from ..exceptions import InvalidInputError
 
 __all__ = ["PlaneModel", "Plane", "Cluster", "Segmentation", "segment", "neck", "local_spacing", "LINK_SPACINGS",
-           "NORMAL_SPACINGS", "ATTACH_SHARE", "ATTACH_LINKS", "PLANE_SHARE",
+           "NORMAL_SPACINGS", "ATTACH_SHARE", "ATTACH_LINKS", "PLANE_SHARE", "PLANE_PIECE_SHARE",
            "MIN_POINTS", "OBJECT", "PLANE", "CLUTTER", "OUTLIER"]
 
 #: The link distance of the connectivity, in median spacings (see the module notes).
@@ -75,6 +77,10 @@ MIN_POINTS = {2: 30, 3: 70}
 #: Plane inliers: within this many noise scales of the plane, and never closer than one spacing
 #: (clean data has a noise scale of nearly 0, and a random sample of a plane is not exactly on it).
 PLANE_SCALES = 3.0
+#: A component with at least this share of its points on a removed plane is a piece of that
+#: plane (the floor between an object's legs, or cut off by an object), not an object: an
+#: object standing on the floor has at most its lowest rim there.
+PLANE_PIECE_SHARE = 0.9
 #: At most this many planes are removed.
 MAX_PLANES = 4
 #: A plane whose rim is beside off-plane points over more than this share is an object's face,
@@ -308,25 +314,34 @@ def segment(points: ArrayLike, *, planes: bool | None = None, outliers: str | fl
             plane = _dominant_plane(pts, keep, threshold, plane_share, link, generator)
             if plane is None:
                 break
-            found.append(plane)
             kinds[plane.indices] = PLANE
+            found = _with_pieces(pts, found, [plane.indices]) if _coplanar(pts, plane, found) else [*found, plane]
             keep = np.flatnonzero(kinds == OBJECT)
             if len(keep) < min_points:
                 break
     labels = np.full(n, -1, dtype=np.int64)
     objects: list[Cluster] = []
     clutter: list[Cluster] = []
+    pieces: list[NDArray[np.int64]] = []
     if len(keep):
         local = local_spacing(pts[keep])
         component = _surface_components(pts[keep], LINK_SPACINGS * local if link is None else np.full(len(keep), link),
                                         local, noise)
         sizes = np.bincount(component)
+        flat = _on_planes(pts[keep], found)
         for c in np.argsort(-sizes, kind="stable"):
             members = keep[component == c]
+            if found and np.mean(flat[component == c]) >= PLANE_PIECE_SHARE:
+                pieces.append(members)
+                continue
             if sizes[c] < min_points:
                 clutter.append(Cluster(members))
                 continue
             objects.append(Cluster(members))
+    if pieces:
+        found = _with_pieces(pts, found, pieces)
+        for plane in found:
+            kinds[plane.indices] = PLANE
     for i, cluster in enumerate(objects):
         labels[cluster.indices] = i
     for cluster in clutter:
@@ -482,6 +497,32 @@ def _attach(tree, points: NDArray[np.float64], component: NDArray[np.int64], rea
                 break
     roots = np.array([root(c) for c in range(len(sizes))])
     return np.unique(roots[component], return_inverse=True)[1].astype(np.int64)
+
+
+def _on_planes(points: NDArray[np.float64], planes: list[Plane]) -> NDArray[np.bool_]:
+    """Whether each point lies within the inlier threshold of one of ``planes``."""
+    flat = np.zeros(len(points), dtype=bool)
+    for plane in planes:
+        flat |= np.abs(points @ plane.normal - plane.offset) <= plane.threshold
+    return flat
+
+
+def _coplanar(points: NDArray[np.float64], plane: Plane, planes: list[Plane]) -> bool:
+    """Whether ``plane``'s points lie on one of ``planes`` (another piece of the same floor)."""
+    return bool(planes) and bool(np.mean(_on_planes(points[plane.indices], planes)) >= PLANE_PIECE_SHARE)
+
+
+def _with_pieces(points: NDArray[np.float64], planes: list[Plane], pieces: list[NDArray[np.int64]]) -> list[Plane]:
+    """``planes`` with each piece (indices into ``points``) joined to the plane most of it lies on:
+    the floor between an object's legs, or beyond an object that splits it, is the floor."""
+    from dataclasses import replace
+
+    extra: list[list[NDArray[np.int64]]] = [[] for _ in planes]
+    for piece in pieces:
+        near = [np.mean(np.abs(points[piece] @ p.normal - p.offset) <= p.threshold) for p in planes]
+        extra[int(np.argmax(near))].append(piece)
+    return [replace(p, indices=np.sort(np.concatenate([p.indices, *more]))) if more else p
+            for p, more in zip(planes, extra, strict=True)]
 
 
 def _dominant_plane(pts, keep, threshold: float, share: float, reach: float | None, generator) -> Plane | None:
