@@ -121,6 +121,31 @@ def test_a_floor_and_a_wall_are_both_supports(seed):
     assert np.mean(seg.labels[truth == 0] == 0) > 0.95
 
 
+def _grid_sheet(rng, corner, n, step, jitter):
+    """An ``n`` × ``n`` square grid of ``step`` in the plane z = 0 from ``corner``, each point moved by
+    up to ``jitter`` steps: what a scanner's regular sampling of a flat face looks like."""
+    i, j = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
+    flat = np.column_stack([i.ravel(), j.ravel()]) * step + np.asarray(corner)
+    flat += rng.uniform(-jitter, jitter, flat.shape) * step
+    return np.column_stack([flat, np.zeros(len(flat))])
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_even_sheets_two_and_a_half_steps_apart_are_two_objects(seed):
+    """Two flat sheets side by side in one plane, sampled on a scanner's even grid, 2.5 grid steps
+    apart: links lie in both sheets' planes, so only the reach can tell them apart. It comes from
+    the density (the 6th neighbour, 1.41 steps on a square grid: a reach of 1.56 steps), not from
+    the nearest neighbour (3 of them: 3 steps, and the sheets were one object)."""
+    rng = np.random.default_rng(seed)
+    step = 0.025
+    a = _grid_sheet(rng, [0.0, 0.0], 40, step, 0.1)
+    b = _grid_sheet(rng, [(39 + 2.5) * step, 0.0], 40, step, 0.1)
+    seg = segment(np.vstack([a, b]), planes=False, outliers="none", rng=seed)
+    assert len(seg.objects) == 2
+    assert sorted(np.unique(seg.labels[: len(a)]).tolist() + np.unique(seg.labels[len(a):]).tolist()) == [0, 1]
+    assert 1.3 * step < seg.link < 1.8 * step
+
+
 @pytest.mark.parametrize("seed", [0, 1, 2])
 @pytest.mark.parametrize("noise", [0.0, 0.003])
 @pytest.mark.parametrize("n_far", [120, 800])

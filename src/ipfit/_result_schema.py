@@ -310,7 +310,7 @@ SCHEMA: tuple[Key, ...] = (
     _k("segmentation.n_clutter_points", "integer >= 0", "points in them"),
     _k("segmentation.n_outliers", "integer >= 0", "stray returns set aside before the split"),
     _k("segmentation.spacing", "number", "median distance of a point to its nearest neighbour"),
-    _k("segmentation.link", "number", "the link distance of the connectivity (0: labels given)"),
+    _k("segmentation.link", "number", "the median of the points' link distances (0: labels given)"),
     _k("segmentation.noise_scale", "number", "the scan's noise scale"),
     _k("segmentation.labels", "integers", "each point's object (0, 1, ...) or -1, in the input's order"),
     _k("segmentation.kinds", "integers", "each point's kind: 0 object, 1 plane, 2 clutter, 3 outlier"),

@@ -18,11 +18,13 @@ Five steps, each on a well-kept library:
    sheet (the median offset of the neighbours within one local spacing or 2.5 noise scales of
    it: the noise no longer closes gaps, and another object across a gap is outside that window).
    Two moved points are linked when one is within ``link`` of the other (default
-   :data:`LINK_SPACINGS` × its local spacing: the median, over it and its nearest neighbours, of
-   their distances to their nearest neighbour, :attr:`ipfit.Cloud.spacing`, so that a sparse
-   table and a dense toy of one scan are each linked at their own scale; a random sample of a
-   surface stays connected at that reach, about 6 neighbours, above the percolation threshold
-   of a random graph on a surface, near 4.5) and the link leaves neither point's plane by more
+   :data:`LINK_REACH` × its local reach: the median, over it and its 15 nearest neighbours, of
+   their distances to their :data:`LINK_NEIGHBOUR`-th nearest neighbour, so that a sparse table
+   and a dense toy of one scan are each linked at their own scale; about 7 neighbours, above the
+   percolation threshold of a random graph on a surface, near 4.5; a measure of the density
+   alone, not of the nearest neighbour: a scanner's even grid and a random sample of one density
+   get one reach, while their nearest-neighbour spacings differ by about 1.5 ×, and objects
+   closer than 3 spacings of the even grid stay apart) and the link leaves neither point's plane by more
    than :data:`NORMAL_SPACINGS` local spacing: a surface's own links lie in it, while two objects
    facing each other across a gap would be linked along their normals. A thin part (a leg, a
    wire) has a neighbourhood shaped like a line, whose "normal" is across it, so links along it
@@ -51,11 +53,20 @@ from numpy.typing import ArrayLike, NDArray
 from .._utils.validation import as_points, check_int, error
 from ..exceptions import InvalidInputError
 
-__all__ = ["PlaneModel", "Plane", "Cluster", "Segmentation", "segment", "neck", "local_spacing", "LINK_SPACINGS",
+__all__ = ["PlaneModel", "Plane", "Cluster", "Segmentation", "segment", "neck", "local_spacing", "LINK_REACH",
+           "LINK_NEIGHBOUR", "LINK_SPACINGS",
            "NORMAL_SPACINGS", "ATTACH_SHARE", "ATTACH_LINKS", "PLANE_SHARE", "PLANE_PIECE_SHARE",
            "MIN_POINTS", "OBJECT", "PLANE", "CLUTTER", "OUTLIER"]
 
-#: The link distance of the connectivity, in median spacings (see the module notes).
+#: The link distance of the connectivity: this many times each point's local reach, the median
+#: over it and its 15 nearest neighbours of their distance to their :data:`LINK_NEIGHBOUR`-th
+#: nearest neighbour (see the module notes). On the counting scenes of experiments/scenes.py,
+#: 1.02 splits objects off random samples, 1.1 counts as many scenes right as the earlier
+#: 3 median spacings on random samples, and more on even ones (docs/scenes.md).
+LINK_REACH = 1.1
+#: See :data:`LINK_REACH`.
+LINK_NEIGHBOUR = 6
+#: A plane's patch is linked at this many of its points' median spacings (see :func:`segment`).
 LINK_SPACINGS = 3.0
 #: A link may leave a point's surface by at most this many local spacings along the surface's
 #: normal (see the module notes): two objects facing each other across a gap are linked along
@@ -207,7 +218,7 @@ class Segmentation:
     planes : the removed planes, in the order found.
     clutter : the components too small to fit.
     spacing : the median spacing of the points kept (data units).
-    link : the link distance of the connectivity (with local spacings: at the median spacing).
+    link : the link distance of the connectivity (the median of the points' own, data units).
     noise_scale : the scan's noise scale (:func:`ipfit.robust.score_outliers`), or 0.
     """
 
@@ -258,8 +269,8 @@ def segment(points: ArrayLike, *, planes: bool | None = None, outliers: str | fl
     planes : remove dominant planes (default: in 3D yes, in 2D no).
     outliers : 'auto' (default), 'none' or a share: the stray returns set aside first
         (:func:`ipfit.robust.score_outliers`).
-    link : the connectivity's link distance in data units (default :data:`LINK_SPACINGS` × each
-        point's local spacing, :func:`local_spacing`); a link also stays within
+    link : the connectivity's link distance in data units (default :data:`LINK_REACH` × each
+        point's local reach, :func:`local_spacing` of its :data:`LINK_NEIGHBOUR`-th neighbour); a link also stays within
         :data:`NORMAL_SPACINGS` local spacing of both points' planes (see the module notes).
     min_points : fewest points of an object; smaller components are clutter (default
         :data:`MIN_POINTS`).
@@ -279,6 +290,8 @@ def segment(points: ArrayLike, *, planes: bool | None = None, outliers: str | fl
     >>> [c.n_points for c in seg.objects], seg.labels[[0, 200]].tolist()
     ([200, 200], [0, 1])
     """
+    from scipy.spatial import cKDTree
+
     from ..robust import check_outliers, score_outliers
 
     pts = as_points(points, min_points=2)
@@ -323,10 +336,13 @@ def segment(points: ArrayLike, *, planes: bool | None = None, outliers: str | fl
     objects: list[Cluster] = []
     clutter: list[Cluster] = []
     pieces: list[NDArray[np.int64]] = []
+    reach = np.full(1, 0.0 if link is None else link)
     if len(keep):
-        local = local_spacing(pts[keep])
-        component = _surface_components(pts[keep], LINK_SPACINGS * local if link is None else np.full(len(keep), link),
-                                        local, noise)
+        tree = cKDTree(pts[keep])
+        local = local_spacing(pts[keep], tree)
+        reach = (LINK_REACH * local_spacing(pts[keep], tree, LINK_NEIGHBOUR) if link is None
+                 else np.full(len(keep), link))
+        component = _surface_components(pts[keep], reach, local, noise)
         sizes = np.bincount(component)
         flat = _on_planes(pts[keep], found)
         for c in np.argsort(-sizes, kind="stable"):
@@ -347,23 +363,25 @@ def segment(points: ArrayLike, *, planes: bool | None = None, outliers: str | fl
     for cluster in clutter:
         kinds[cluster.indices] = CLUTTER
     objects = [_with_neck(pts, c, rng) for c in objects]
-    reach = LINK_SPACINGS * spacing if link is None else link
-    return Segmentation(labels, kinds, tuple(objects), tuple(found), tuple(clutter), spacing, float(reach), noise,
-                        {"link_spacings": None if link is not None else LINK_SPACINGS, "min_points": min_points,
+    return Segmentation(labels, kinds, tuple(objects), tuple(found), tuple(clutter), spacing, float(np.median(reach)),
+                        noise,
+                        {"link_reach": None if link is not None else LINK_REACH,
+                         "link_neighbour": None if link is not None else LINK_NEIGHBOUR, "min_points": min_points,
                          "plane_share": plane_share if planes else None})
 
 
-def local_spacing(points: NDArray[np.float64], tree=None) -> NDArray[np.float64]:
+def local_spacing(points: NDArray[np.float64], tree=None, neighbour: int = 1) -> NDArray[np.float64]:
     """Each point's spacing where it lies: the median, over it and its 15 nearest neighbours, of
-    their distances to their nearest neighbour (a scan's density varies: a table far from the
-    scanner is sparser than a toy near it; the median of 16 keeps one sample's luck out of it)."""
+    their distances to their ``neighbour``-th nearest neighbour (a scan's density varies: a table
+    far from the scanner is sparser than a toy near it; the median of 16 keeps one sample's luck
+    out of it)."""
     from scipy.spatial import cKDTree
 
     tree = cKDTree(points) if tree is None else tree
-    k = min(16, len(points))
+    k = min(max(16, neighbour + 1), len(points))
     distance, near = tree.query(points, k=k)
-    nearest = distance[:, 1] if k > 1 else np.zeros(len(points))
-    return np.median(nearest[near], axis=1)
+    nearest = distance[:, min(neighbour, k - 1)] if k > 1 else np.zeros(len(points))
+    return np.median(nearest[near[:, :16]], axis=1)
 
 
 def _components(points: NDArray[np.float64], reach: NDArray[np.float64] | float) -> NDArray[np.int64]:
