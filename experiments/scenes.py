@@ -156,7 +156,7 @@ def build_scene(pool, rng, n_objects: int, gap: float | None = None, sampling: s
     noisy = [c + rng.normal(0, s, c.shape) for c, s in zip(clean, sigmas, strict=True)]
     plane = plane + rng.normal(0, np.median(sigmas), plane.shape)
     pts = np.vstack([*noisy, plane])
-    labels = np.concatenate([*truth, np.full(n_plane, -1)])
+    labels = np.concatenate([*truth, np.full(len(plane), -1)])
     box_lo, box_hi = pts.min(axis=0), pts.max(axis=0)
     grow = GROW * (box_hi - box_lo)
     n_out = int(round(OUTLIERS * len(pts)))
