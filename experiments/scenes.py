@@ -441,8 +441,9 @@ def page(data: dict) -> str:
     if even:
         lines += ["", "### Even samples", "",
                   "The same scenes drawn as a scanner samples them, evenly (`trimesh.sample.sample_surface_even`, "
-                  "the plane on a jittered grid) at the same density, with the same noise and outliers: a median "
-                  "spacing about 1.5 × a random sample's, and a link distance of a median "
+                  "whose rejection keeps 70-100 % of the points asked, and the plane on a jittered grid) at about "
+                  "the same density, with the same noise and outliers: a median spacing about 1.5 × a random "
+                  "sample's, and a link distance of a median "
                   f"{np.median([r['link_spacings'] for r in even]):.1f} of its spacings.", "",
                   *count_table(even)[2:]]
     fits = data["fitting"]
