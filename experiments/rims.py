@@ -48,6 +48,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+# this checkout's ipfit, in the spawned workers too (they import this module first)
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))
 
 TURK = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "turk-dev"
 CONDITIONS = {"faces": ("given", "rounded", "mesh"), "bare": ("off", "on"), "noisy": ("off", "on")}

@@ -59,6 +59,9 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
+# this checkout's ipfit, in the spawned workers too (they import this module first): an ipfit
+# installed from another checkout would otherwise be measured under this one's commit
+sys.path.insert(0, str(ROOT / "src"))
 SHARED = ROOT.parent / "shared"
 DEFAULT_SHAPES = (str(SHARED / "data" / "mpeg7-dev"), str(SHARED / "data" / "turk-dev"), "bundled")
 CORRUPT_PY = SHARED / "tools" / "corrupt.py"
