@@ -60,13 +60,14 @@ __all__ = ["PlaneModel", "Plane", "Cluster", "Segmentation", "segment", "neck", 
 
 #: The link distance of the connectivity: this many times each point's local reach, the median
 #: over it and its 15 nearest neighbours of their distance to their :data:`LINK_NEIGHBOUR`-th
-#: nearest neighbour (see the module notes). On the counting scenes of experiments/scenes.py,
-#: 1.02 splits objects off random samples, 1.1 counts as many scenes right as the earlier
-#: 3 median spacings on random samples, and more on even ones (docs/scenes.md).
+#: nearest neighbour (see the module notes). On the counting scenes of experiments/scenes.py
+#: (external and development), 0.95 and 1.02 split pieces off objects of random samples; 1.1
+#: counts at least as many scenes right as the earlier 3 median spacings on random samples
+#: (24 and 22 against 21 and 22) and more on even ones (29 and 25 against 24 and 20).
 LINK_REACH = 1.1
 #: See :data:`LINK_REACH`.
 LINK_NEIGHBOUR = 6
-#: A plane's patch is linked at this many of its points' median spacings (see :func:`segment`).
+#: The patch of a plane RANSAC finds is linked at this many of its points' median spacings.
 LINK_SPACINGS = 3.0
 #: A link may leave a point's surface by at most this many local spacings along the surface's
 #: normal (see the module notes): two objects facing each other across a gap are linked along
