@@ -63,7 +63,7 @@ __all__ = ["PlaneModel", "Plane", "Cluster", "Segmentation", "segment", "neck", 
 #: nearest neighbour (see the module notes). On the counting scenes of experiments/scenes.py
 #: (external and development), 0.95 and 1.02 split pieces off objects of random samples; 1.1
 #: counts at least as many scenes right as the earlier 3 median spacings on random samples
-#: (24 and 22 against 21 and 22) and more on even ones (29 and 25 against 24 and 20).
+#: (24 and 22 against 21 and 22, docs/scenes*.md before and after) and more on even ones.
 LINK_REACH = 1.1
 #: See :data:`LINK_REACH`.
 LINK_NEIGHBOUR = 6
@@ -176,6 +176,10 @@ class Plane:
     def n_points(self) -> int:
         return len(self.indices)
 
+    def holds(self, points: NDArray[np.float64]) -> NDArray[np.bool_]:
+        """Whether each of ``points`` is within the plane's inlier threshold."""
+        return np.abs(points @ self.normal - self.offset) <= self.threshold
+
     def polynomial(self, points: ArrayLike):
         """The plane as a degree-1 :class:`~ipfit.ImplicitPolynomial`, normalised over ``points``
         (its inliers): f(x) = normal · x − offset in the data's units."""
@@ -271,8 +275,9 @@ def segment(points: ArrayLike, *, planes: bool | None = None, outliers: str | fl
     outliers : 'auto' (default), 'none' or a share: the stray returns set aside first
         (:func:`ipfit.robust.score_outliers`).
     link : the connectivity's link distance in data units (default :data:`LINK_REACH` × each
-        point's local reach, :func:`local_spacing` of its :data:`LINK_NEIGHBOUR`-th neighbour); a link also stays within
-        :data:`NORMAL_SPACINGS` local spacing of both points' planes (see the module notes).
+        point's local reach, :func:`local_spacing` with its :data:`LINK_NEIGHBOUR`-th neighbour
+        for the nearest); a link also stays within :data:`NORMAL_SPACINGS` local spacing of both
+        points' planes (see the module notes).
     min_points : fewest points of an object; smaller components are clutter (default
         :data:`MIN_POINTS`).
     plane_share : smallest share of the points in play a plane must hold to be removed.
@@ -291,8 +296,6 @@ def segment(points: ArrayLike, *, planes: bool | None = None, outliers: str | fl
     >>> [c.n_points for c in seg.objects], seg.labels[[0, 200]].tolist()
     ([200, 200], [0, 1])
     """
-    from scipy.spatial import cKDTree
-
     from ..robust import check_outliers, score_outliers
 
     pts = as_points(points, min_points=2)
@@ -339,10 +342,8 @@ def segment(points: ArrayLike, *, planes: bool | None = None, outliers: str | fl
     pieces: list[NDArray[np.int64]] = []
     reach = np.full(1, 0.0 if link is None else link)
     if len(keep):
-        tree = cKDTree(pts[keep])
-        local = local_spacing(pts[keep], tree)
-        reach = (LINK_REACH * local_spacing(pts[keep], tree, LINK_NEIGHBOUR) if link is None
-                 else np.full(len(keep), link))
+        local, reach = _local_scales(pts[keep], (1, LINK_NEIGHBOUR))
+        reach = LINK_REACH * reach if link is None else np.full(len(keep), link)
         component = _surface_components(pts[keep], reach, local, noise)
         sizes = np.bincount(component)
         flat = _on_planes(pts[keep], found)
@@ -357,8 +358,7 @@ def segment(points: ArrayLike, *, planes: bool | None = None, outliers: str | fl
             objects.append(Cluster(members))
     if pieces:
         found = _with_pieces(pts, found, pieces)
-        for plane in found:
-            kinds[plane.indices] = PLANE
+        kinds[np.concatenate(pieces)] = PLANE
     for i, cluster in enumerate(objects):
         labels[cluster.indices] = i
     for cluster in clutter:
@@ -371,18 +371,25 @@ def segment(points: ArrayLike, *, planes: bool | None = None, outliers: str | fl
                          "plane_share": plane_share if planes else None})
 
 
-def local_spacing(points: NDArray[np.float64], tree=None, neighbour: int = 1) -> NDArray[np.float64]:
+def local_spacing(points: NDArray[np.float64], tree=None) -> NDArray[np.float64]:
     """Each point's spacing where it lies: the median, over it and its 15 nearest neighbours, of
-    their distances to their ``neighbour``-th nearest neighbour (a scan's density varies: a table
-    far from the scanner is sparser than a toy near it; the median of 16 keeps one sample's luck
-    out of it)."""
+    their distances to their nearest neighbour (a scan's density varies: a table far from the
+    scanner is sparser than a toy near it; the median of 16 keeps one sample's luck out of it)."""
+    return _local_scales(points, (1,), tree)[0]
+
+
+def _local_scales(points: NDArray[np.float64], neighbours: tuple[int, ...], tree=None) -> list[NDArray[np.float64]]:
+    """:func:`local_spacing` of each of ``neighbours`` (the k-th nearest neighbour's distance in
+    place of the nearest's), from one neighbour query."""
     from scipy.spatial import cKDTree
 
     tree = cKDTree(points) if tree is None else tree
-    k = min(max(16, neighbour + 1), len(points))
+    k = min(max(16, max(neighbours) + 1), len(points))
     distance, near = tree.query(points, k=k)
-    nearest = distance[:, min(neighbour, k - 1)] if k > 1 else np.zeros(len(points))
-    return np.median(nearest[near[:, :16]], axis=1)
+    near = near[:, :16]
+    if k < 2:
+        return [np.zeros(len(points)) for _ in neighbours]
+    return [np.median(distance[:, min(j, k - 1)][near], axis=1) for j in neighbours]
 
 
 def _components(points: NDArray[np.float64], reach: NDArray[np.float64] | float) -> NDArray[np.int64]:
@@ -522,7 +529,7 @@ def _on_planes(points: NDArray[np.float64], planes: list[Plane]) -> NDArray[np.b
     """Whether each point lies within the inlier threshold of one of ``planes``."""
     flat = np.zeros(len(points), dtype=bool)
     for plane in planes:
-        flat |= np.abs(points @ plane.normal - plane.offset) <= plane.threshold
+        flat |= plane.holds(points)
     return flat
 
 
@@ -538,7 +545,7 @@ def _with_pieces(points: NDArray[np.float64], planes: list[Plane], pieces: list[
 
     extra: list[list[NDArray[np.int64]]] = [[] for _ in planes]
     for piece in pieces:
-        near = [np.mean(np.abs(points[piece] @ p.normal - p.offset) <= p.threshold) for p in planes]
+        near = [np.mean(p.holds(points[piece])) for p in planes]
         extra[int(np.argmax(near))].append(piece)
     return [replace(p, indices=np.sort(np.concatenate([p.indices, *more]))) if more else p
             for p, more in zip(planes, extra, strict=True)]
