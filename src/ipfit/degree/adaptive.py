@@ -51,7 +51,7 @@ from ..fitting.options import (
     SearchOptions,
 )
 from ..fitting.refine import refine
-from ..geometry.sampling import spread_subsample
+from ..geometry.sampling import spread_subsample, surface_points
 from ..normals import estimate_normals
 from ..normals.estimate import looks_noisy
 from ..normals.rims import round_rims
@@ -404,7 +404,9 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
         when the rule repairs a degree to the data's topology after the loop; 'every_point' with
         the 'degree', 'n_points' and 'fit_points' when a big cloud's degrees were fitted on an even
         subsample of it and the selected one is measured on every point, see
-        :class:`~ipfit.SearchOptions` ``fit_points``); 'weights_variant' with a 'message' before
+        :class:`~ipfit.SearchOptions` ``fit_points``); 'mesh_points' with a 'message' when a sparse
+        mesh is fitted with points spread over its faces too (``SearchOptions.mesh_points``);
+        'weights_variant' with a 'message' before
         each further fit of a weighted 3D cloud (see ``outliers``); 'normals_variant' with a
         'message' before the fit of a noisy 3D cloud with the normals estimated without the
         noise's σ (see Notes); 'reorient' with a 'message' before the second fit of a 3D cloud
@@ -492,6 +494,15 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
         keep = scored.inliers
         pts, known, faces = pts[keep], None if known is None else known[keep], _kept_faces(faces, keep)
         weights = scored.weights[keep] * (1.0 if weights is None else weights[keep])
+    # A sparse mesh's faces add points where its vertices leave its surface bare (SearchOptions.mesh_points)
+    wanted = rule.max_degree(dim) if max_degree is None else max_degree
+    on_faces = _on_faces(pts, known, faces, weights, options if method in REFINE_METHODS else None,
+                         rule.points_per_coefficient * basis.n_coefficients(dim, wanted))
+    if on_faces is not None:
+        n_vertices = len(pts)
+        pts, known = np.vstack([pts, on_faces[0]]), np.vstack([cast(NDArray, known), on_faces[1]])
+        if progress is not None:
+            progress({"event": "mesh_points", "message": _on_faces_note(n_vertices, len(on_faces[0]))})
     top = _top_degree(len(pts), dim, min_degree, max_degree, rule)
     unit = known
     scored_weights = None  # the score's weights, when the support factor below changed them
@@ -580,10 +591,11 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
     chosen = loop.results[loop.index]
     name = method if isinstance(method, str) else getattr(method, "__name__", "custom")
     success = loop.reason != "interrupted" and rule.success(loop.results, loop.index)
+    sampled = () if on_faces is None else (_on_faces_note(n_vertices, len(on_faces[0])),)
     return AdaptiveResult(
         x=chosen.x, fun=chosen.fun, nit=sum(r.nit for done in total for r in done.results),
         nfev=sum(r.nfev for done in total for r in done.results), success=success,
-        message="; ".join((loop.message, *loop.notes)), polynomial=chosen.polynomial,
+        message="; ".join((loop.message, *loop.notes, *sampled)), polynomial=chosen.polynomial,
         selected_degree=chosen.degree, degrees=tuple(loop.results), reason=loop.reason, epsilon=epsilon, delta=delta,
         method=name, rule=rule.name, seconds=time.perf_counter() - start,
         options=options if method in REFINE_METHODS else None, outliers=scored)
@@ -938,6 +950,23 @@ def _settled_on_wrong_topology(results: list[DegreeResult], rule: DegreeRule, ep
     settled, index, _ = rule.settle(results, epsilon, stop, variant, final=False)
     wrong = rule.is_clean(settled[index].quality) and topology_differs(settled[index].quality)
     return settled if wrong else None
+
+
+def _on_faces(points: NDArray, normals: NDArray | None, faces: NDArray | None, weights: NDArray | None,
+              options: SearchOptions | None, needed: int) -> tuple[NDArray, NDArray] | None:
+    """Points spread over a 3D mesh's faces and their interpolated normals, as many as its
+    vertices fall short of ``options.mesh_points`` (at least of ``needed``, what the highest degree
+    asks for); None unless an unweighted 3D mesh with vertex normals has fewer than ``needed``
+    vertices."""
+    most = None if options is None else options.mesh_points
+    if most is None or faces is None or normals is None or weights is not None or len(points) >= needed:
+        return None
+    on_faces = surface_points(points, faces, normals, max(most, needed) - len(points))
+    return None if not len(on_faces[0]) else on_faces
+
+
+def _on_faces_note(n_vertices: int, n_on_faces: int) -> str:
+    return f"fitted on the mesh's {n_vertices:,} vertices and {n_on_faces:,} points spread over its faces"
 
 
 def _working_cloud(cloud: Cloud, unit, options: SearchOptions | None):

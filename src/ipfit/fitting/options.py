@@ -177,6 +177,14 @@ class SearchOptions:
         paper). 50,000 points sample a shape far more densely than a polynomial of
         the maximum degree resolves (165 coefficients in 3D), and a degree's full-cloud passes
         (ranking, measures, quality) were most of a million-point fit's time (docs/peers.md).
+    mesh_points : int or None, default 2,000
+        :func:`ipfit.fit_adaptive` on a 3D mesh (with vertex normals) whose vertices are too few for
+        the highest degree it may try (the rule's points per coefficient: 910 for degree 12) also
+        fits points spread evenly over its faces, this many points in all, each with its face's
+        vertex normals interpolated at it (:func:`ipfit.geometry.sampling.surface_points`, fixed
+        seed): its faces are the surface every degree is measured against, and its few vertices
+        would stop the degrees early and leave thin parts with hardly a point. None: the vertices
+        only (the paper). Measured in docs/mesh-points.md.
     stall_generations : int, None or "auto", default "auto"
         End DE/PSO when the best objective value has not improved by more than
         ``stall_tolerance`` (relative) over this many generations. None: always run
@@ -224,6 +232,7 @@ class SearchOptions:
     n_solutions: int = 5
     search_points: int | str | None = "auto"
     fit_points: int | None = 50_000
+    mesh_points: int | None = 2_000
     stall_generations: int | str | None = "auto"
     stall_tolerance: float = 1e-4
     warm_start: bool = False
@@ -272,6 +281,8 @@ class SearchOptions:
             set_("search_points", _int_or_auto(self.search_points, "search_points", 10))
         if self.fit_points is not None:
             set_("fit_points", check_int(self.fit_points, "fit_points", minimum=1000))
+        if self.mesh_points is not None:
+            set_("mesh_points", check_int(self.mesh_points, "mesh_points", minimum=1))
         if self.stall_generations is not None:
             set_("stall_generations", _int_or_auto(self.stall_generations, "stall_generations", 1))
         set_("stall_tolerance", check_nonnegative(self.stall_tolerance, "stall_tolerance"))
@@ -362,6 +373,7 @@ class MethodOptions:
     n_solutions: int
     search_points: int | None
     fit_points: int | None
+    mesh_points: int | None
     stall_generations: int | None
     stall_tolerance: float
     warm_start: bool
@@ -380,4 +392,5 @@ RECOMMENDED = SearchOptions()
 #: The paper's exact search: DE (F = 0.7, CR = 0.9, 500 iterations, population 4·d, N/10 started)
 #: in the raw coefficients, started from the classic and 3L fits, on the paper's distance.
 PAPER = SearchOptions(start_fits=("lstsq", "3l"), search_space="coefficients", far_term_weight=0.0, search_points=None,
-                      fit_points=None, stall_generations=None, cleanup_weights=(), dtype="float64")
+                      fit_points=None, mesh_points=None, stall_generations=None, cleanup_weights=(),
+                      dtype="float64")

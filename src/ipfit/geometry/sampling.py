@@ -8,6 +8,8 @@ is chosen so that about ``n`` cells are occupied, which keeps sparse regions rep
 (unlike a uniform random draw, which follows the sampling density). :func:`point_spacing`
 gives each point's distance to its k-th nearest neighbour: the sampling gaps that the quality
 measures, the trim distance and the repairs allow for on a bare cloud.
+:func:`surface_points` goes the other way for a mesh: points spread evenly over its faces, with
+normals interpolated from its vertices', where its vertices sample the surface too sparsely.
 """
 
 from __future__ import annotations
@@ -15,10 +17,11 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._utils.validation import check_int, check_rng
+from .._utils.numeric import unit_rows_mask
+from .._utils.validation import as_faces, as_points, check_int, check_rng, error
 from ..cloud import Cloud, as_cloud
 
-__all__ = ["spread_subsample", "point_spacing"]
+__all__ = ["spread_subsample", "point_spacing", "surface_points"]
 
 
 def point_spacing(points: ArrayLike | Cloud, k: int = 1) -> NDArray[np.float64]:
@@ -102,3 +105,69 @@ def spread_subsample(points: ArrayLike | Cloud, n: int, *, rng=0) -> NDArray[np.
         rest = np.setdiff1d(np.arange(total), chosen)
         chosen = np.concatenate([chosen, gen.choice(rest, n - len(chosen), replace=False)])
     return np.sort(order[chosen])
+
+
+#: :func:`surface_points` draws this many times the points it keeps, at random over the area,
+#: and keeps an even spread of them (a random draw alone leaves clumps and gaps).
+SURFACE_OVERSAMPLING = 4
+
+
+def surface_points(vertices: ArrayLike, faces: ArrayLike, normals: ArrayLike, n: int, *,
+                   rng=0) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """``n`` points spread evenly over a triangle mesh's faces, and their normals.
+
+    Points are drawn at random over the surface (each face in proportion to its area, fixed
+    seed), :data:`SURFACE_OVERSAMPLING` times as many as asked, and ``n`` of them kept by
+    :func:`spread_subsample`. A point's normal is its face's three vertex normals interpolated at
+    it (barycentric weights) and normalised: the smooth normal field the vertex normals stand
+    for, which turns over a thin part's rim as the surface does, where the faces' own normals
+    jump (docs/rims.md).
+
+    Parameters
+    ----------
+    vertices : (V, 3) array
+    faces : (F, 3) integer array
+    normals : (V, 3) array
+        The vertices' normals.
+    n : int
+        How many points.
+    rng : None, int or Generator, default 0
+
+    Returns
+    -------
+    points, normals : (n, 3) arrays; a normal whose interpolation vanishes (opposite vertex
+    normals) is the face's own. No points when the faces have no area.
+
+    Examples
+    --------
+    >>> import numpy as np, trimesh
+    >>> box = trimesh.creation.box()
+    >>> pts, nrm = surface_points(box.vertices, box.faces, box.vertex_normals, 500)
+    >>> pts.shape, bool(np.allclose(np.abs(pts).max(axis=1), 0.5))  # every point on a face
+    ((500, 3), True)
+    """
+    verts = as_points(vertices, "vertices", dims=(3,))
+    tri = as_faces(faces, len(verts))
+    vn = np.asarray(normals, dtype=np.float64)
+    if vn.shape != verts.shape:
+        raise error("normals", f"shape {verts.shape}, one per vertex", f"shape {vn.shape}")
+    n = check_int(n, "n", minimum=1)
+    gen = check_rng(rng)
+    a, b, c = verts[tri[:, 0]], verts[tri[:, 1]], verts[tri[:, 2]]
+    cross = np.cross(b - a, c - a)
+    area = np.linalg.norm(cross, axis=1)
+    if not np.isfinite(area).all() or area.sum() <= 0:
+        return np.empty((0, 3)), np.empty((0, 3))
+    drawn = SURFACE_OVERSAMPLING * n
+    face = gen.choice(len(tri), drawn, p=area / area.sum())
+    # uniform on a triangle: fold the unit square's upper half back onto the lower one
+    u, v = gen.random(drawn), gen.random(drawn)
+    fold = u + v > 1
+    u[fold], v[fold] = 1 - u[fold], 1 - v[fold]
+    w = np.column_stack([1 - u - v, u, v])
+    points = np.einsum("ij,ijk->ik", w, verts[tri[face]])
+    keep = spread_subsample(points, n, rng=gen)
+    face, w, points = face[keep], w[keep], points[keep]
+    interpolated, ok = unit_rows_mask(np.einsum("ij,ijk->ik", w, vn[tri[face]]))
+    own = unit_rows_mask(cross[face])[0]
+    return points, np.where(ok[:, None], interpolated, own)
