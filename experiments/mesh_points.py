@@ -86,8 +86,8 @@ def page(rows: list[dict], meta: dict) -> str:
             "(τ = 2 % of the box diagonal).\n"),
            "## Summary\n",
            "*Over every mesh and seed*\n",
-           "| setting | fits | median F | mean F | worst F (mesh, seed) | lower than vertices only by > 0.01 | "
-           "with spurious components | total seconds |",
+           ("| setting | fits | median F | mean F | worst F (mesh, seed) | lower than vertices only by > 0.01 | "
+            "with spurious components | total seconds |"),
            "|---|---|---|---|---|---|---|---|"]
     for total in settings:
         mine = [r for r in rows if r["total"] == total]
@@ -137,7 +137,8 @@ def main(argv=None) -> None:
     import ipfit
 
     needed = _needed()
-    specs = [(name, name) for name in BUNDLED] + [(f"turk-dev/{p.stem}", str(p)) for p in sorted(args.turk.glob("*.ply"))]
+    specs = [(name, name) for name in BUNDLED]
+    specs += [(f"turk-dev/{p.stem}", str(p)) for p in sorted(args.turk.glob("*.ply"))]
     specs += [(Path(m).stem, m) for m in args.meshes]
     sparse, not_fitted = [], []
     for label, spec in specs:
