@@ -116,3 +116,9 @@ def test_the_command_says_it_fitted_points_on_the_faces(tmp_path):
     result = json.loads((tmp_path / "t.json").read_text())
     assert result["selected_degree"] == 4 and result["adaptive"]["message"].endswith(note)
     assert result["input"]["n_points"] == 60  # the data are the mesh's vertices
+
+
+def test_a_maximum_degree_beyond_the_limit_is_refused_before_any_sampling():
+    torus = _coarse_torus()
+    with pytest.raises(ipfit.InvalidInputError, match=r"^max_degree: expected at most \d+ in 3D"):
+        ipfit.fit_adaptive(torus.vertices, torus.vertex_normals, faces=torus.faces, max_degree=400)

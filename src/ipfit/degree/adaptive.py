@@ -495,7 +495,8 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
         pts, known, faces = pts[keep], None if known is None else known[keep], _kept_faces(faces, keep)
         weights = scored.weights[keep] * (1.0 if weights is None else weights[keep])
     # A sparse mesh's faces add points where its vertices leave its surface bare (SearchOptions.mesh_points)
-    wanted = rule.max_degree(dim) if max_degree is None else max_degree
+    wanted = rule.max_degree(dim) if max_degree is None else \
+        min(check_int(max_degree, "max_degree", minimum=min_degree), basis.MAX_DEGREE[dim])  # beyond: refused below
     on_faces = _on_faces(pts, known, faces, weights, options if method in REFINE_METHODS else None,
                          rule.points_per_coefficient * basis.n_coefficients(dim, wanted))
     if on_faces is not None:

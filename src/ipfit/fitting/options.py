@@ -180,11 +180,12 @@ class SearchOptions:
     mesh_points : int or None, default 2,000
         :func:`ipfit.fit_adaptive` on a 3D mesh (with vertex normals) whose vertices are too few for
         the highest degree it may try (the rule's points per coefficient: 910 for degree 12) also
-        fits points spread evenly over its faces, this many points in all, each with its face's
-        vertex normals interpolated at it (:func:`ipfit.geometry.sampling.surface_points`, fixed
-        seed): its faces are the surface every degree is measured against, and its few vertices
-        would stop the degrees early and leave thin parts with hardly a point. None: the vertices
-        only (the paper). Measured in docs/mesh-points.md.
+        fits points spread evenly over its faces, this many points in all (at least as many as that
+        degree asks for), each with its face's vertex normals interpolated at it
+        (:func:`ipfit.geometry.sampling.surface_points`, fixed seed): its faces are the surface
+        every degree is measured against, and its few vertices would stop the degrees early and
+        leave thin parts with hardly a point. None: the vertices only (the paper). Measured in
+        docs/mesh-points.md.
     stall_generations : int, None or "auto", default "auto"
         End DE/PSO when the best objective value has not improved by more than
         ``stall_tolerance`` (relative) over this many generations. None: always run
