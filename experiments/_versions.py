@@ -2,7 +2,8 @@
 
 Each runs in its own worker process with one BLAS and numba thread, so that the two share the
 2 cores alike; each worker first fits a small shape once, so that no timed fit pays for numba's
-compilation.
+compilation. Also the helpers the experiment scripts share: the data's loader, a page run's
+``meta`` and its page with a ``.json`` twin.
 """
 
 from __future__ import annotations
@@ -10,10 +11,14 @@ from __future__ import annotations
 import json
 import multiprocessing
 import os
+import platform
+import shlex
 import sys
+import time
+from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor, as_completed
+from datetime import date
 from pathlib import Path
-from typing import Callable
 
 
 def start_worker(src: str | None) -> None:
@@ -72,3 +77,33 @@ def spurious_cell(row: dict) -> str:
 
 def n_beyond_specks(row: dict) -> int:
     return int(spurious_cell(row).split()[0])
+
+
+def page_meta(script: str, argv, out: Path, started: float, **extra) -> dict:
+    """The ``meta`` of a page's run by ``experiments/script``: its command line, date, machine,
+    commit, Python, minutes since ``started`` (``time.perf_counter()``), ``out`` and ``extra``."""
+    from bench_peers import _commit, _machine  # benchmarks/ is on the caller's path
+
+    command = f"python experiments/{script} " + " ".join(shlex.quote(a) for a in (argv or sys.argv[1:]))
+    return {"command": command.strip(), "date": date.today().isoformat(), "machine": _machine(),
+            "commit": _commit(), "python": platform.python_version(), "minutes": (time.perf_counter() - started) / 60,
+            "out": str(out), **extra}
+
+
+def write_page(out: Path, page: Callable[[list, dict], str], rows: list | None = None,
+               meta: dict | None = None) -> None:
+    """``page(rows, meta)`` written to ``out`` and both to its ``.json`` twin; without ``rows``,
+    the page again from the twin (``--page-only``)."""
+    store = out.with_suffix(".json")
+    if rows is None:
+        saved = json.loads(store.read_text())
+        rows, meta = saved["rows"], saved["meta"]
+    else:
+        store.write_text(json.dumps({"meta": meta, "rows": rows}, indent=1))
+    out.write_text(page(rows, meta or {}))
+
+
+def regenerate(meta: dict, script: str) -> str:
+    """A page's last line: the command that wrote it, and the one that rewrites it from its twin."""
+    return (f"\nRegenerate: `{meta['command']}`; `python experiments/{script} --out {meta['out']} --page-only` "
+            "rewrites this page from its JSON.")

@@ -21,16 +21,14 @@ from __future__ import annotations
 
 import argparse
 import json
-import platform
-import shlex
 import sys
 import time
 import warnings
 from concurrent.futures import ProcessPoolExecutor
-from datetime import date
 from pathlib import Path
 
 import numpy as np
+from _versions import page_meta, regenerate, write_page
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
@@ -112,14 +110,11 @@ def page(rows: list[dict], meta: dict) -> str:
     out.append("\n`*`: spurious components beyond specks.")
     if meta.get("not_fitted"):
         out.append(f"\nNot fitted (enough vertices, so fitted as before): {', '.join(meta['not_fitted'])}.")
-    out.append(f"\nRegenerate: `{meta['command']}`; `python experiments/mesh_points.py --out {meta['out']} "
-               "--page-only` rewrites this page from its JSON.")
+    out.append(regenerate(meta, "mesh_points.py"))
     return "\n".join(out) + "\n"
 
 
 def main(argv=None) -> None:
-    from bench_peers import _commit, _machine
-
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--meshes", nargs="*", default=[])
     parser.add_argument("--turk", type=Path, default=TURK)
@@ -129,10 +124,8 @@ def main(argv=None) -> None:
     parser.add_argument("--out", type=Path, default=Path("docs/mesh-points.md"))
     parser.add_argument("--page-only", action="store_true")
     args = parser.parse_args(argv)
-    store = args.out.with_suffix(".json")
     if args.page_only:
-        saved = json.loads(store.read_text())
-        args.out.write_text(page(saved["rows"], saved["meta"]))
+        write_page(args.out, page)
         return
     import ipfit
 
@@ -151,13 +144,9 @@ def main(argv=None) -> None:
         for row in pool.map(run, jobs):
             rows.append(row)
             print(json.dumps({k: v for k, v in row.items() if k != "degrees"}), flush=True)
-    command = "python experiments/mesh_points.py " + " ".join(shlex.quote(a) for a in (argv or sys.argv[1:]))
-    meta = {"command": command.strip(), "date": date.today().isoformat(), "machine": _machine(),
-            "commit": _commit(), "python": platform.python_version(), "needed": needed,
-            "minutes": (time.perf_counter() - start) / 60, "out": str(args.out),
-            "not_fitted": [label for label, _ in not_fitted]}
-    store.write_text(json.dumps({"meta": meta, "rows": rows}, indent=1))
-    args.out.write_text(page(rows, meta))
+    meta = page_meta("mesh_points.py", argv, args.out, start, needed=needed,
+                     not_fitted=[label for label, _ in not_fitted])
+    write_page(args.out, page, rows, meta)
 
 
 if __name__ == "__main__":

@@ -35,16 +35,14 @@ from __future__ import annotations
 
 import argparse
 import json
-import platform
-import shlex
 import sys
 import time
 import warnings
 from concurrent.futures import ProcessPoolExecutor
-from datetime import date
 from pathlib import Path
 
 import numpy as np
+from _versions import page_meta, regenerate, write_page
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
@@ -180,14 +178,11 @@ def page(rows: list[dict], meta: dict) -> str:
                    " | ".join(cell(n, c, v) for c, vs in CONDITIONS.items() for v in vs) + " |")
     if meta.get("left_out"):
         out.append(f"\nLeft out (faces not consistently wound, no outward side): {', '.join(meta['left_out'])}.")
-    out.append(f"\nRegenerate: `{meta['command']}`; `python experiments/rims.py --out {meta['out']} --page-only` "
-               "rewrites this page from its JSON.")
+    out.append(regenerate(meta, "rims.py"))
     return "\n".join(out) + "\n"
 
 
 def main(argv=None) -> None:
-    from bench_peers import _commit, _machine
-
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--only", nargs="*", default=None)
     parser.add_argument("--meshes", nargs="*", default=[])
@@ -197,10 +192,8 @@ def main(argv=None) -> None:
     parser.add_argument("--out", type=Path, default=Path("docs/rims.md"))
     parser.add_argument("--page-only", action="store_true")
     args = parser.parse_args(argv)
-    store = args.out.with_suffix(".json")
     if args.page_only:
-        saved = json.loads(store.read_text())
-        args.out.write_text(page(saved["rows"], saved["meta"]))
+        write_page(args.out, page)
         return
     from normals_bare import shapes, surface_samples
 
@@ -216,12 +209,8 @@ def main(argv=None) -> None:
         for row in pool.map(run, jobs):
             rows.append(row)
             print(json.dumps(row), flush=True)
-    command = "python experiments/rims.py " + " ".join(shlex.quote(a) for a in (argv or sys.argv[1:]))
-    meta = {"command": command.strip(), "date": date.today().isoformat(), "machine": _machine(),
-            "commit": _commit(), "python": platform.python_version(), "samples": args.samples,
-            "minutes": (time.perf_counter() - start) / 60, "out": str(args.out), "left_out": left_out}
-    store.write_text(json.dumps({"meta": meta, "rows": rows}, indent=1))
-    args.out.write_text(page(rows, meta))
+    meta = page_meta("rims.py", argv, args.out, start, samples=args.samples, left_out=left_out)
+    write_page(args.out, page, rows, meta)
 
 
 if __name__ == "__main__":
