@@ -495,15 +495,17 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
         pts, known, faces = pts[keep], None if known is None else known[keep], _kept_faces(faces, keep)
         weights = scored.weights[keep] * (1.0 if weights is None else weights[keep])
     # A sparse mesh's faces add points where its vertices leave its surface bare (SearchOptions.mesh_points)
-    wanted = rule.max_degree(dim) if max_degree is None else \
-        min(check_int(max_degree, "max_degree", minimum=min_degree), basis.MAX_DEGREE[dim])  # beyond: refused below
+    # (max_degree was checked by check_settings; one beyond the limit is refused below, unsampled)
+    wanted = rule.max_degree(dim) if max_degree is None else min(int(max_degree), basis.MAX_DEGREE[dim])
     on_faces = _on_faces(pts, known, faces, weights, options if method in REFINE_METHODS else None,
                          rule.points_per_coefficient * basis.n_coefficients(dim, wanted))
+    sampled: tuple[str, ...] = ()
     if on_faces is not None:
-        n_vertices = len(pts)
+        note = f"fitted on the mesh's {len(pts):,} vertices and {len(on_faces[0]):,} points spread over its faces"
+        sampled = (note,)
         pts, known = np.vstack([pts, on_faces[0]]), np.vstack([cast(NDArray, known), on_faces[1]])
         if progress is not None:
-            progress({"event": "mesh_points", "message": _on_faces_note(n_vertices, len(on_faces[0]))})
+            progress({"event": "mesh_points", "message": note})
     top = _top_degree(len(pts), dim, min_degree, max_degree, rule)
     unit = known
     scored_weights = None  # the score's weights, when the support factor below changed them
@@ -592,7 +594,6 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
     chosen = loop.results[loop.index]
     name = method if isinstance(method, str) else getattr(method, "__name__", "custom")
     success = loop.reason != "interrupted" and rule.success(loop.results, loop.index)
-    sampled = () if on_faces is None else (_on_faces_note(n_vertices, len(on_faces[0])),)
     return AdaptiveResult(
         x=chosen.x, fun=chosen.fun, nit=sum(r.nit for done in total for r in done.results),
         nfev=sum(r.nfev for done in total for r in done.results), success=success,
@@ -964,10 +965,6 @@ def _on_faces(points: NDArray, normals: NDArray | None, faces: NDArray | None, w
         return None
     on_faces = surface_points(points, faces, normals, max(most, needed) - len(points))
     return None if not len(on_faces[0]) else on_faces
-
-
-def _on_faces_note(n_vertices: int, n_on_faces: int) -> str:
-    return f"fitted on the mesh's {n_vertices:,} vertices and {n_on_faces:,} points spread over its faces"
 
 
 def _working_cloud(cloud: Cloud, unit, options: SearchOptions | None):
