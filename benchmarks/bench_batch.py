@@ -31,6 +31,8 @@ from pathlib import Path
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))  # this checkout's ipfit, not an installed one
+
 REPO = Path(__file__).resolve().parents[1]
 FAST = dict(method="3l", max_degree=6)
 CHUNK = 1_000_000

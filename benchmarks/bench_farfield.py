@@ -32,6 +32,10 @@ import platform
 import time
 
 import numpy as np
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))  # this checkout's ipfit, not an installed one
 
 DATASETS = [("airplane", (6, 10)), ("boot", (6, 10)), ("butterfly", (6, 10)), ("apple", (6, 8)),
             ("duck", (6, 8)), ("bunny-3000", (6, 8)), ("bunny", (6, 8))]

@@ -30,6 +30,10 @@ import tracemalloc
 
 import numpy as np
 
+import sys
+from pathlib import Path
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))  # this checkout's ipfit, not an installed one
+
 from ipfit.datasets import bundled
 from ipfit.geometry.mesh import fill_missing_normals, vertex_normals_from_faces
 from ipfit.normals import DEFAULT_K, estimate_normals, normal_agreement

@@ -53,6 +53,8 @@ from pathlib import Path
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))  # this checkout's ipfit, not an installed one
+
 REPO = Path(__file__).resolve().parents[1]
 TOOLS = ("ipfit", "ipfit fit (command)", "Poisson d6", "Poisson d8")
 TRIM_QUANTILE = 0.01

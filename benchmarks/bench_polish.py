@@ -27,6 +27,10 @@ import platform
 import time
 
 import numpy as np
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))  # this checkout's ipfit, not an installed one
 
 CASES = [("airplane", 10), ("boot", 6), ("butterfly", 14), ("apple", 8), ("duck", 8), ("bunny", 8)]
 SEARCH_POINTS = {2: 1000, 3: 3000}

@@ -22,6 +22,9 @@ import sys
 import time
 
 import numpy as np
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))  # this checkout's ipfit, not an installed one
 
 # -- the previous implementation (reference for the comparison only) --------------------------
 

@@ -14,6 +14,10 @@ import time
 
 import numpy as np
 
+import sys
+from pathlib import Path
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))  # this checkout's ipfit, not an installed one
+
 from ipfit.datasets.bundled import DATA_DIR
 from ipfit.io.meshfiles import _ascii_ply, _plyfile_elements
 

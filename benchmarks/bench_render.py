@@ -29,6 +29,9 @@ import time
 import tracemalloc
 from pathlib import Path
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))  # this checkout's ipfit, not an installed one
+os.environ["PYTHONPATH"] = os.pathsep.join(filter(None, [sys.path[0], os.environ.get("PYTHONPATH")]))  # its child processes too
+
 # A child reports its own CPU time and peak resident size. Not ru_maxrss: Linux carries the
 # parent's peak into a forked child (this process holds numpy and numba), and RUSAGE_CHILDREN is
 # the largest over every child so far; /proc's VmHWM is this process image's own.

@@ -30,6 +30,9 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
+import sys
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))  # this checkout's ipfit, not an installed one
 
 BUDGETS = {"long": {"stall_generations": 60, "polish_iterations": 1000},
            "short": {"stall_generations": 30, "polish_iterations": 300}}

@@ -40,6 +40,8 @@ from pathlib import Path
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))  # this checkout's ipfit, not an installed one
+
 STAGES = (
     ("outlier score", "robust/score.py", "score_outliers"),
     ("normals", "normals/estimate.py", "estimate_normals"),

@@ -12,6 +12,9 @@ from __future__ import annotations
 import sys
 import time
 
+from pathlib import Path
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))  # this checkout's ipfit, not an installed one
+
 import ipfit
 
 VARIANTS = {

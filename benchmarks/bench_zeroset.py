@@ -14,6 +14,10 @@ import argparse
 import time
 
 import numpy as np
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))  # this checkout's ipfit, not an installed one
 
 
 def best_of(repeat: int, fn):

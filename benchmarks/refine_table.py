@@ -24,6 +24,9 @@ import time
 from pathlib import Path
 
 import numpy as np
+import sys
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))  # this checkout's ipfit, not an installed one
 
 DATASETS = ("airplane", "boot", "butterfly", "apple", "duck", "bunny_res4", "bunny_res3", "bunny_res2", "bunny")
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "data"

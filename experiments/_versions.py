@@ -20,6 +20,8 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from datetime import date
 from pathlib import Path
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))  # this checkout's ipfit, not an installed one
+
 
 def start_worker(src: str | None) -> None:
     """Runs in each worker: one thread, ``src`` (another checkout's src/) first on the path."""

@@ -13,6 +13,9 @@ import time
 from datetime import date
 from pathlib import Path
 
+import sys
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))  # this checkout's ipfit, not an installed one
+
 from ipfit.cli import main as ipfit_main
 
 PAPER = {"airplane": 4, "boot": 6, "butterfly": 4, "apple": 4, "duck": 6, "bunny": 6}

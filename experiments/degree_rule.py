@@ -35,6 +35,9 @@ from pathlib import Path
 
 import numpy as np
 from _versions import load_data, n_beyond_specks, run_side_by_side, spurious_cell, spurious_record
+import sys
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))  # this checkout's ipfit, not an installed one
 
 PIPELINES = ("paper", "geometric", "capture")
 BUNDLED = ("boot", "airplane", "butterfly")

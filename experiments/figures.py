@@ -26,6 +26,8 @@ from typing import Sequence
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))  # this checkout's ipfit, not an installed one
+
 
 # The bundled scans are y-up (Stanford bunny, Turk's apple); everything else is drawn z-up.
 DEFAULT_UP = {"bunny": "y", "apple": "y"}

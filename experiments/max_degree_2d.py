@@ -33,6 +33,8 @@ from pathlib import Path
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))  # this checkout's ipfit, not an installed one
+
 REPO = Path(__file__).resolve().parent.parent
 BUNDLED = ("boot", "airplane", "butterfly")
 BEFORE = 14

@@ -60,6 +60,8 @@ from pathlib import Path
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))  # this checkout's ipfit, not an installed one
+
 import ipfit
 from ipfit.zeroset.quality import quality
 

@@ -30,6 +30,9 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial import cKDTree
 
+import sys
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))  # this checkout's ipfit, not an installed one
+
 import ipfit
 from ipfit.robust import score_outliers
 

@@ -28,6 +28,9 @@ from pathlib import Path
 
 import numpy as np
 from _versions import load_data, run_side_by_side
+import sys
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))  # this checkout's ipfit, not an installed one
 
 BUNDLED = ("boot", "airplane", "butterfly", "apple", "duck", "bunny")
 

@@ -21,6 +21,9 @@ from pathlib import Path
 
 import numpy as np
 
+import sys
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))  # this checkout's ipfit, not an installed one
+
 import ipfit
 from ipfit.analysis.curvature import curvature
 from ipfit.analysis.invariants import invariants, similarity

@@ -32,6 +32,9 @@ from pathlib import Path
 import numpy as np
 from _versions import load_data, n_beyond_specks, run_side_by_side, spurious_cell, spurious_record
 from degree_rule import conditioning
+import sys
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))  # this checkout's ipfit, not an installed one
 
 BUNDLED = ("bunny", "apple", "duck")
 PIPELINES = ("before", "capture")

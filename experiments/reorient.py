@@ -39,6 +39,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import robust  # the protocol's reader and corruption, one copy
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))  # this checkout's ipfit, not an installed one
+
 DEFAULT_SHAPES = (str(robust.SHARED / "data" / "turk-dev"), "apple")
 CONDITIONS = ("clean", "noise-0.5", "noise-1")
 

@@ -24,6 +24,9 @@ from pathlib import Path
 
 import numpy as np
 
+import sys
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))  # this checkout's ipfit, not an installed one
+
 import ipfit
 from ipfit import PAPER, PAPER_METHOD, PAPER_RULE, RECOMMENDED
 from ipfit.degree.adaptive import fit_adaptive

@@ -20,6 +20,8 @@ import tempfile
 import time
 from pathlib import Path
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))  # this checkout's ipfit, not an installed one
+
 REPO = Path(__file__).resolve().parents[1]
 UP = {"bunny": "y", "apple": "y"}  # the bundled scans that are y-up
 

@@ -239,3 +239,36 @@ def test_the_architecture_page_shows_the_checked_layers():
     script = root / "experiments" / "architecture.py"
     assert subprocess.run([sys.executable, str(script), "--check"]).returncode == 0, \
         "docs/architecture.md is stale: run python experiments/architecture.py"
+
+
+def _imports_ipfit(node: ast.AST) -> bool:
+    if isinstance(node, ast.Import):
+        return any(alias.name.split(".")[0] == PACKAGE for alias in node.names)
+    return isinstance(node, ast.ImportFrom) and (node.module or "").split(".")[0] == PACKAGE
+
+
+def _puts_src_first(node: ast.stmt) -> bool:
+    """``sys.path.insert(0, <an expression naming "src">)`` at module level."""
+    if not (isinstance(node, ast.Expr) and isinstance(node.value, ast.Call)):
+        return False
+    call = node.value
+    return (ast.unparse(call.func) == "sys.path.insert" and len(call.args) == 2
+            and ast.unparse(call.args[0]) == "0" and "'src'" in ast.unparse(call.args[1]))
+
+
+@pytest.mark.parametrize("folder", ["experiments", "benchmarks"])
+def test_scripts_measure_this_checkout(folder):
+    """Every experiment and benchmark that uses ipfit puts this checkout's src/ first on its path
+    before its first module-level import of ipfit: a page's numbers and its recorded commit must be
+    of the same code, whatever ipfit another virtual environment has installed (session 63's run of
+    docs/robust-dense.md measured another checkout's)."""
+    missing = []
+    for script in sorted((SRC.parent / folder).glob("*.py")):
+        tree = ast.parse(script.read_text())
+        if not any(_imports_ipfit(node) for node in ast.walk(tree)):
+            continue
+        guard = next((i for i, node in enumerate(tree.body) if _puts_src_first(node)), None)
+        first = next((i for i, node in enumerate(tree.body) if _imports_ipfit(node)), len(tree.body))
+        if guard is None or guard > first:
+            missing.append(script.name)
+    assert not missing, f"put this checkout's src/ first in {folder}/: {', '.join(missing)}"
