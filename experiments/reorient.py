@@ -14,7 +14,8 @@ so that no share of turned normals is enough, and ``_POOR_BELOW`` below 0, so th
 measures poorly) and as shipped: the second pass with the fit's signs, where ``'auto'``
 left points out and the fit measures poorly, the fit on every point unweighted, and, where the
 normals were grown to the noise's σ and the fit measures poorly, the fit with the nearest points'
-normals. Both fits are scored
+normals, and, on a sparse or uneven cloud whose fit measures poorly, the fits with the normals
+oriented by the close-layer vote (``layered_normals``). Both fits are scored
 against the clean mesh (``ipfit.zeroset.quality.quality``, τ = 2 % of the box diagonal); the page
 gives per shape the F-scores, degrees and seconds of both, and whether the second pass ran and was
 kept. Both fits of one case run in the same process one after the other, so their times are a
@@ -68,8 +69,10 @@ def run_case(shape: str, path: str, condition: str, seed: int) -> dict:
         row[label] = {"f_score": q.f_score, "degree": result.selected_degree, "n_spurious": q.n_spurious,
                       "seconds": seconds, "message": result.message}
     message = row["twice"]["message"]
-    row["second_pass"] = ("kept" if "(measured better)" in message else "ran, first kept" if "fitted again" in message
-                          else "not run")
+    row["second_pass"] = ("kept" if "fit's gradient and fitted again (measured better)" in message
+                          else "ran, first kept" if "fit's gradient and fitted again" in message else "not run")
+    row["layers"] = ("kept" if "close-layer vote and fitted again (measured better)" in message
+                     else "ran, first kept" if "close-layer vote" in message else "not run")
     row["unweighted"] = ("kept" if "scored as outliers kept" in message else "ran, first kept"
                          if "unweighted, measured no better" in message else "not run")
     return row
@@ -88,15 +91,18 @@ def markdown(meta: dict, rows: list[dict]) -> str:
              "below 0.95, is fitted again with each normal turned to the first fit's gradient, and the second fit is "
              "kept when it measures better on the points; before that, a fit from which `outliers='auto'` left points "
              "out and that measures below 0.95 is fitted again on every point, unweighted, kept when it measures "
-             "better on the points the score trusts: the *unweighted* column, — where the page predates it; see "
+             "better on the points the score trusts: the *unweighted* column, — where the page predates it; and on "
+             "a sparse or uneven cloud whose fit measures below 0.95, its selected degree fitted with the normals "
+             "oriented by the close-layer vote, the whole loop again with them when that measures better, kept "
+             "when it measures better: the *layers* column, — where the page predates it; see "
              "`fit_adaptive`'s Notes). F against the clean mesh (τ = 2 % of the box diagonal); both fits of a case "
              "ran one after the other in one process."),
              ""]
     if meta.get("source"):
         lines += [f"Where the shapes come from: {meta['source']}", ""]
     lines += [("| condition | shapes | median F once | median F twice | better by > 0.01 | worse by > 0.01 | "
-               "second pass ran / kept | unweighted ran / kept | time twice / once (median) |"),
-              "|---|---|---|---|---|---|---|---|---|"]
+               "second pass ran / kept | unweighted ran / kept | layers ran / kept | time twice / once (median) |"),
+              "|---|---|---|---|---|---|---|---|---|---|"]
     for condition in meta["conditions"]:
         sel = [r for r in rows if r["condition"] == condition]
         if not sel:
@@ -109,16 +115,19 @@ def markdown(meta: dict, rows: list[dict]) -> str:
         looks = [r["unweighted"] for r in sel if "unweighted" in r]
         unweighted = (f"{sum(u != 'not run' for u in looks)} / {sum(u == 'kept' for u in looks)}"
                       if len(looks) == len(sel) else "—")
+        tried = [r["layers"] for r in sel if "layers" in r]
+        layers = (f"{sum(u != 'not run' for u in tried)} / {sum(u == 'kept' for u in tried)}"
+                  if len(tried) == len(sel) else "—")
         better, worse = int((twice > once + 0.01).sum()), int((twice < once - 0.01).sum())
         label = "clean" if condition == "clean" else f"σ = {robust.CONDITIONS[condition][0]:.1%}"
         lines.append(f"| {label} | {len(sel)} | {np.median(once):.3f} | "
-                     f"{np.median(twice):.3f} | {better} | {worse} | {ran} / {kept} | {unweighted} | {ratio:.2f} |")
-    lines += ["", ("| shape | condition | F once (degree) | F twice (degree) | second pass | unweighted | "
-                   "seconds once / twice |"), "|---|---|---|---|---|---|---|"]
+                     f"{np.median(twice):.3f} | {better} | {worse} | {ran} / {kept} | {unweighted} | {layers} | {ratio:.2f} |")
+    lines += ["", ("| shape | condition | F once (degree) | F twice (degree) | second pass | unweighted | layers | "
+                   "seconds once / twice |"), "|---|---|---|---|---|---|---|---|"]
     for r in sorted(rows, key=lambda r: (r["shape"], r["condition"])):
         o, t = r["once"], r["twice"]
         lines.append(f"| {r['shape']} | {r['condition']} | {o['f_score']:.3f} ({o['degree']}) | "
-                     f"{t['f_score']:.3f} ({t['degree']}) | {r['second_pass']} | {r.get('unweighted', '—')} | "
+                     f"{t['f_score']:.3f} ({t['degree']}) | {r['second_pass']} | {r.get('unweighted', '—')} | {r.get('layers', '—')} | "
                      f"{o['seconds']:.0f} / {t['seconds']:.0f} |")
     return "\n".join(lines) + "\n"
 

@@ -53,7 +53,7 @@ from ..fitting.options import (
 from ..fitting.refine import refine
 from ..geometry.sampling import spread_subsample, surface_points
 from ..normals import estimate_normals
-from ..normals.estimate import looks_noisy
+from ..normals.estimate import layered_normals, looks_noisy
 from ..normals.rims import round_rims
 from ..polynomial import ImplicitPolynomial, Normalization
 from ..robust import OutlierScore, check_outliers, score_outliers
@@ -291,9 +291,12 @@ def _check_progress(progress):
 # than _REORIENT_FEWEST of them turn.
 _REORIENT_REACH = 0.05
 _REORIENT_FEWEST = 0.01
+# The close-layer look (_layered) runs only if its signs differ from the fit's at more than this share.
+_LAYERS_FEWEST = 0.01
 # A 3D fit whose best clean F-score is below this (the rule's "not yet good" in 3D) gets a second
 # look: without the outlier score's weights when 'auto' acted (_unweighted), and with the fit's
-# signs when its normals were estimated (_reoriented; a noisy cloud always gets that one). A fit
+# signs when its normals were estimated (_reoriented; a noisy cloud always gets that one), and
+# before that with the close-layer vote's signs on a sparse cloud (_layered). A fit
 # that already follows the data seldom gains from either (docs/reorient-clean.md), and each costs
 # another degree loop.
 _POOR_BELOW = EXTEND_BELOW[3]
@@ -409,8 +412,9 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
         'weights_variant' with a 'message' before
         each further fit of a weighted 3D cloud (see ``outliers``); 'normals_variant' with a
         'message' before the fit of a noisy 3D cloud with the normals estimated without the
-        noise's σ (see Notes); 'reorient' with a 'message' before the second fit of a 3D cloud
-        with estimated normals (see Notes).
+        noise's σ (see Notes); 'layers' with a 'message' before the fits of a sparse 3D cloud
+        with its normals oriented by the close-layer vote (see Notes); 'reorient' with a 'message'
+        before the second fit of a 3D cloud with estimated normals (see Notes).
 
     Returns
     -------
@@ -425,6 +429,14 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
     on smooth parts, but a thin part can come out inside out as a whole), and that fit is kept
     when its F-score on the points is higher by more than 0.01 (by more than 0.05 at a higher
     degree, which may chase the noise), the ``message`` saying which.
+
+    On a sparse or unevenly sampled 3D cloud whose normals the fit estimated (and no outlier
+    weights), a first fit whose best clean F-score is below 0.95 gets a look with the normals
+    oriented by the close-layer vote too (:func:`~ipfit.normals.estimate.layered_normals`: a thin
+    part's two sides, closer than the neighbour links reach, can be turned inside out as a whole;
+    a point whose normal line meets the other side close in front of it votes its part the other
+    way round). The selected degree is fitted with them first; only if that measures better on the
+    points is the whole loop run again, kept when it measures better (docs/reorient-clean.md).
 
     A 3D cloud whose normals are estimated is fitted twice when it looks noisy
     (``ipfit.normals.estimate.looks_noisy``) or its first fit's best clean F-score is below
@@ -546,6 +558,7 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
     second_pass = copy.deepcopy(generator) if reorient else None
     unweighted_pass = copy.deepcopy(generator) if every is not None else None
     plain_pass = copy.deepcopy(generator) if for_noise else None
+    layers_pass = copy.deepcopy(generator) if reorient and weights is None else None
     if scored_weights is None or dim != 3:
         loop = _degree_loop(cloud, unit, settings, generator)
         total = [loop]
@@ -588,6 +601,8 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
         nearest = _without_noise(cloud.points, confident, unit)
         if nearest is not None:
             loop, cloud, unit = _plain_normals(loop, cloud, unit, nearest, settings, plain_pass, total)
+    if layers_pass is not None and loop.reason != "interrupted" and rule.best_clean_f(loop.results) < _POOR_BELOW:
+        loop, cloud, unit = _layered(loop, cloud, unit, noise, settings, layers_pass, total)
     if second_pass is not None and loop.reason != "interrupted" and (
             rule.best_clean_f(loop.results) < _POOR_BELOW or looks_noisy(pts)):
         loop = _reoriented(loop, cloud, unit, settings, second_pass, total)
@@ -667,6 +682,47 @@ def _against_gradient(poly: ImplicitPolynomial, points: NDArray, normals: NDArra
     with np.errstate(invalid="ignore"):  # a non-finite value or gradient is not near
         near = np.abs(value) < reach * np.linalg.norm(gradient, axis=1)
     return near & (np.einsum("ij,ij->i", normals, gradient) < 0)
+
+
+def _layered(loop: _Loop, cloud: Cloud, unit, noise: float | None, settings: _LoopSettings, generator,
+             total: list[_Loop]) -> tuple[_Loop, Cloud, NDArray]:
+    """``(loop, cloud, unit)``, or the degree loop run again with the normals oriented with the
+    close-layer vote (:func:`~ipfit.normals.estimate.layered_normals`), its cloud and normals, when
+    it measures better on the points.
+
+    On a sparse 3D cloud a thin part's two sides are closer than the neighbour links reach, and
+    the sign propagation can turn the part inside out as a whole (the Turk chopper's rotor: 15 %
+    of its signs). The vote puts it right where a point's normal line meets the other side close
+    in front of it; two separate parts facing each other as close look the same to it (the Turk
+    porsche's wheels), hence the fits kept only when they measure better (docs/reorient-clean.md).
+    """
+    layered = layered_normals(cloud.points, noise)
+    turned = np.einsum("ij,ij->i", layered, cloud.oriented) < 0
+    if turned.sum() <= _LAYERS_FEWEST * len(turned):
+        return loop, cloud, unit
+    if settings.progress is not None:
+        settings.progress({"event": "layers", "message": f"{int(turned.sum()):,} normals turned by the close-layer "
+                                                          "vote, fitting again"})
+    layered_cloud = Cloud._checked(cloud.points, as_normals(layered, cloud.points), cloud.faces, cloud.weights)
+    trusted = _trusted(cloud.points, cloud.weights)
+    share = f"{turned.mean():.0%} of the normals turned by the close-layer vote"
+    # a look at the selected degree first: the whole loop again only where that measures better
+    degree = loop.results[loop.index].degree
+    probe = _another_loop(layered_cloud, layered, dataclasses.replace(settings, min_degree=degree, top=degree),
+                          copy.deepcopy(generator), total)
+    if probe is None:
+        return loop, cloud, unit
+    if not _measures_better(probe, loop, trusted, settings.rule):
+        note = f"{share} (degree {degree} fitted again with them measured no better: kept)"
+        return dataclasses.replace(loop, notes=(*loop.notes, note)), cloud, unit
+    again = _another_loop(layered_cloud, layered, settings, generator, total)
+    if again is None:
+        return loop, cloud, unit
+    if _measures_better(again, loop, trusted, settings.rule):
+        return (dataclasses.replace(again, notes=(*loop.notes, f"{share} and fitted again (measured better)")),
+                layered_cloud, layered)
+    return dataclasses.replace(loop, notes=(*loop.notes, f"{share} and fitted again (measured no better: kept)")), \
+        cloud, unit
 
 
 def _reoriented(loop: _Loop, cloud: Cloud, unit, settings: _LoopSettings, generator, total: list[_Loop]) -> _Loop:

@@ -272,6 +272,20 @@ def estimate_normals(points: ArrayLike, k: int | None = None, *, orient: bool = 
             return _normals_of_inliers(pts, mask, k, orient, workers, noise, return_confidence, progress)
     orient = check_flag(orient, "orient")
     workers = check_workers(workers)
+    return _estimate_checked(pts, k, orient, workers, noise, return_confidence, progress)
+
+
+def layered_normals(points: ArrayLike, noise: float | None = None) -> NDArray[np.float64]:
+    """:func:`estimate_normals` (every point, default k) with the close-layer vote added to the
+    orientation of a sparse or unevenly sampled 3D cloud (``orient_graph``'s ``layers``); elsewhere
+    the same normals. The variant :func:`~ipfit.fit_adaptive` looks at when its first fit of a bare
+    3D cloud measures poorly."""
+    return _estimate_checked(as_points(points, min_points=3), None, True, -1, noise, False, None, layers=True)
+
+
+def _estimate_checked(pts: NDArray, k, orient: bool, workers: int, noise: float | None, return_confidence: bool,
+                      progress: Callable[[dict], None] | None, layers: bool = False):
+    """:func:`estimate_normals` on its checked arguments (``layers``: see :func:`layered_normals`)."""
     given = pts
     pts = standardise(pts)
     sigma = None if noise is None else _standard_sigma(given, pts, noise)
@@ -287,10 +301,10 @@ def estimate_normals(points: ArrayLike, k: int | None = None, *, orient: bool = 
 
     distinct, inverse = _distinct(pts)
     if len(distinct) < len(pts) and len(distinct) > pts.shape[1]:
-        normals, confidence = _estimate(distinct, k, orient, workers, return_confidence, say, sigma)
+        normals, confidence = _estimate(distinct, k, orient, workers, return_confidence, say, sigma, layers=layers)
         normals, confidence = normals[inverse], confidence[inverse]
     else:
-        normals, confidence = _estimate(pts, k, orient, workers, return_confidence, say, sigma)
+        normals, confidence = _estimate(pts, k, orient, workers, return_confidence, say, sigma, layers=layers)
     say("done")
     return (normals, confidence) if return_confidence else normals
 
@@ -347,7 +361,8 @@ def _on_sample(pts: NDArray, sample: NDArray[np.intp], estimate: Callable[[NDArr
 
 
 def _estimate(pts: NDArray, k, orient: bool, workers: int, want_confidence: bool, say: Callable[[str], None],
-              sigma: float | None = None, plain: bool = False) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+              sigma: float | None = None, plain: bool = False,
+              layers: bool = False) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Normals and (if wanted, else NaN) their confidence on standardised points (see estimate_normals);
     ``plain``: the k nearest points' fit and its refinements, even where the points look noisy."""
     k = default_k(k, pts.shape[1], len(pts))
@@ -401,7 +416,7 @@ def _estimate(pts: NDArray, k, orient: bool, workers: int, want_confidence: bool
         # large empty balls (poles.exterior_anchors), and the winding number votes.
         uneven = doubtful is not None and is_uneven(doubtful, len(pts))
         normals = orient_graph(pts, normals, idx, flatness, links, tree=tree,
-                               exterior=doubtful if uneven else None, winding=uneven)
+                               exterior=doubtful if uneven else None, winding=uneven, layers=layers and uneven)
     return normals, confidence
 
 

@@ -95,13 +95,16 @@ def _edges(idx: NDArray[np.intp], links) -> tuple[NDArray[np.intp], NDArray[np.i
 def orient_graph(points: NDArray, normals: NDArray, idx: NDArray[np.intp], flatness: NDArray,
                  links: tuple[NDArray[np.intp], NDArray[np.intp]] | None = None, *,
                  tree: cKDTree | None = None, exterior: NDArray[np.intp] | None = None,
-                 winding: bool = False) -> NDArray[np.float64]:
+                 winding: bool = False, layers: bool = False) -> NDArray[np.float64]:
     """Signs of unit ``normals`` made consistent on the graph of ``idx`` (+ ``links``); see orient_normals.
 
     ``exterior``: points (3D) tested as anchors touched by a large empty ball (poles.exterior_anchors).
     ``winding``: then also flip the pieces the winding number of the others says are inside out
     (3D; see _winding_votes), for sparse or unevenly sampled clouds, whose neighbour links often
     cross thin parts.
+    ``layers``: each point also votes its piece's sign by where the other side of a thin part lies
+    along its normal line (see _layer_votes); a variant, since two parts facing each other closely
+    vote the same way as a thin part inside out.
     """
     n = len(points)
     lo, hi = _edges(idx, links)
@@ -170,6 +173,10 @@ def orient_graph(points: NDArray, normals: NDArray, idx: NDArray[np.intp], flatn
         trust = flatness[anchor] * np.abs(anchor_cos)
         pull = np.bincount(piece[anchor], trust, npieces)
         rhs = np.bincount(piece[anchor], trust * np.sign(anchor_cos) * sign[anchor], npieces)
+        if layers:
+            layer = _layer_votes(points, normals * sign[:, None], idx)
+            pull += np.bincount(piece, _LAYER_WEIGHT * np.abs(layer), npieces)
+            rhs += np.bincount(piece, _LAYER_WEIGHT * layer, npieces)
         # Signed graph Laplacian + anchor terms: positive definite wherever a piece connects to
         # an anchor; the tiny shift keeps isolated, unanchored pieces (x = 0: left as they are) solvable.
         diagonal = degree + pull + 1e-12
@@ -183,6 +190,30 @@ def orient_graph(points: NDArray, normals: NDArray, idx: NDArray[np.intp], flatn
                     break
                 sign *= np.where(inside_out[piece], -1.0, 1.0)
     return normals * sign[:, None]
+
+
+# The close-layer vote (orient_graph's ``layers``): a voting point's pull on its piece (an anchor's
+# is at most 1), how close along its normal line the other side must be (in the point's median
+# spacing to its 6 nearest), and how near that line (the cosine of the widest angle). On the sparse
+# Turk chopper it turned its rotor's inside-out signs right (15 % of the points wrong -> 5.5 %).
+_LAYER_WEIGHT = 0.5
+_LAYER_REACH = 0.8
+_LAYER_CONE = np.cos(np.radians(35.0))
+
+
+def _layer_votes(points: NDArray, oriented: NDArray, idx: NDArray[np.intp]) -> NDArray[np.float64]:
+    """Per point: +1 where another of its k nearest lies close behind it on its normal line and
+    none in front (a thin part's other side, as outward normals have it), -1 where close in front
+    and none behind (inside out), else 0."""
+    votes = np.zeros(len(points))
+    for rows in blocks(len(points), idx.shape[1]):  # (N, k, D) temporaries for big clouds: blocks
+        near = points[idx[rows, 1:]] - points[rows, None, :]
+        dist = np.sqrt(np.einsum("ikj,ikj->ik", near, near))
+        spacing = np.median(dist[:, :6], axis=1)
+        along = np.einsum("ikj,ij->ik", near, oriented[rows])
+        close = (np.abs(along) > _LAYER_CONE * dist) & (np.abs(along) < _LAYER_REACH * spacing[:, None])
+        votes[rows] = (close & (along < 0)).any(axis=1).astype(float) - (close & (along > 0)).any(axis=1)
+    return votes
 
 
 # The winding-number vote: evaluated at most at _WINDING_QUERIES points (spread over the cloud),
