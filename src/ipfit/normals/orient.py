@@ -194,8 +194,8 @@ def orient_graph(points: NDArray, normals: NDArray, idx: NDArray[np.intp], flatn
 
 # The close-layer vote (orient_graph's ``layers``): a voting point's pull on its piece (an anchor's
 # is at most 1), how close along its normal line the other side must be (in the point's median
-# spacing to its 6 nearest), and how near that line (the cosine of the widest angle). On the sparse
-# Turk chopper it turned its rotor's inside-out signs right (15 % of the points wrong -> 5.5 %).
+# spacing to its 6 nearest), and how near that line (the cosine of the widest angle); see
+# docs/real-clouds.md for where it helps and where it misleads.
 _LAYER_WEIGHT = 0.5
 _LAYER_REACH = 0.8
 _LAYER_CONE = np.cos(np.radians(35.0))
