@@ -522,8 +522,9 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
     unit = known
     scored_weights = None  # the score's weights, when the support factor below changed them
     confident: NDArray[np.bool_] | slice = slice(None)
+    estimated = None  # the normals estimated for an unweighted cloud (a look re-orients them: _layered)
     if unit is None and weights is None:
-        unit = estimate_normals(pts, noise=noise, progress=progress)
+        unit = estimated = estimate_normals(pts, noise=noise, progress=progress)
     elif unit is None:
         # A stray the score missed must neither tilt nor orient its neighbours' normals, nor pull
         # the fit with a normal of its own: the normals are estimated on the confident points (as
@@ -558,7 +559,7 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
     second_pass = copy.deepcopy(generator) if reorient else None
     unweighted_pass = copy.deepcopy(generator) if every is not None else None
     plain_pass = copy.deepcopy(generator) if for_noise else None
-    layers_pass = copy.deepcopy(generator) if reorient and weights is None else None
+    layers_pass = copy.deepcopy(generator) if reorient and estimated is not None else None
     if scored_weights is None or dim != 3:
         loop = _degree_loop(cloud, unit, settings, generator)
         total = [loop]
@@ -601,7 +602,8 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
         nearest = _without_noise(cloud.points, confident, unit)
         if nearest is not None:
             loop, cloud, unit = _plain_normals(loop, cloud, unit, nearest, settings, plain_pass, total)
-    if layers_pass is not None and loop.reason != "interrupted" and rule.best_clean_f(loop.results) < _POOR_BELOW:
+    if layers_pass is not None and unit is estimated and loop.reason != "interrupted" and \
+            rule.best_clean_f(loop.results) < _POOR_BELOW:
         loop, cloud, unit = _layered(loop, cloud, unit, noise, settings, layers_pass, total)
     if second_pass is not None and loop.reason != "interrupted" and (
             rule.best_clean_f(loop.results) < _POOR_BELOW or looks_noisy(pts)):
@@ -691,10 +693,10 @@ def _layered(loop: _Loop, cloud: Cloud, unit, noise: float | None, settings: _Lo
     it measures better on the points.
 
     On a sparse 3D cloud a thin part's two sides are closer than the neighbour links reach, and
-    the sign propagation can turn the part inside out as a whole (the Turk chopper's rotor: 15 %
-    of its signs). The vote puts it right where a point's normal line meets the other side close
-    in front of it; two separate parts facing each other as close look the same to it (the Turk
-    porsche's wheels), hence the fits kept only when they measure better (docs/reorient-clean.md).
+    the sign propagation can turn the part inside out as a whole (the Turk chopper's rotor). The
+    vote puts it right where a point's normal line meets the other side close in front of it; two
+    separate parts facing each other as close look the same to it (the Turk Porsche's wheels),
+    hence the fits kept only when they measure better (docs/real-clouds.md).
     """
     layered = layered_normals(cloud.points, noise)
     turned = np.einsum("ij,ij->i", layered, cloud.oriented) < 0
