@@ -296,7 +296,8 @@ _LAYERS_FEWEST = 0.01
 # A 3D fit whose best clean F-score is below this (the rule's "not yet good" in 3D) gets a second
 # look: without the outlier score's weights when 'auto' acted (_unweighted), and with the fit's
 # signs when its normals were estimated (_reoriented; a noisy cloud always gets that one), and
-# before that with the close-layer vote's signs on a sparse cloud (_layered). A fit
+# before that with the close-layer vote's signs on a sparse cloud (_layered); a mesh gets one on
+# points spread over its faces (_on_surface). A fit
 # that already follows the data seldom gains from either (docs/reorient-clean.md), and each costs
 # another degree loop.
 _POOR_BELOW = EXTEND_BELOW[3]
@@ -408,7 +409,8 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
         the 'degree', 'n_points' and 'fit_points' when a big cloud's degrees were fitted on an even
         subsample of it and the selected one is measured on every point, see
         :class:`~ipfit.SearchOptions` ``fit_points``); 'mesh_points' with a 'message' when a sparse
-        mesh is fitted with points spread over its faces too (``SearchOptions.mesh_points``);
+        mesh is fitted with points spread over its faces too, or a mesh whose fit measured poorly
+        is fitted again so (``SearchOptions.mesh_points``, see Notes);
         'weights_variant' with a 'message' before
         each further fit of a weighted 3D cloud (see ``outliers``); 'normals_variant' with a
         'message' before the fit of a noisy 3D cloud with the normals estimated without the
@@ -444,6 +446,13 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
     on whole regions, and the second fit takes, at each point within 5 % of the box diagonal of
     the first fit's zero set, the sign of that fit's gradient; it is kept when it measures
     better (as the weights' variant above), the ``message`` saying which.
+
+    A 3D mesh with vertex normals (unweighted) whose first fit's best clean F-score is below
+    0.95 is fitted again on its vertices and ``SearchOptions.mesh_points`` points spread evenly
+    over its faces (their normals interpolated from the vertices'): a CAD or low-polygon mesh
+    crowds its vertices on details and leaves flat parts with a few big triangles, which a fit
+    weighing every point alike lets go. That fit is kept when it measures better against the
+    faces, the ``message`` saying which (docs/quality-3d.md).
 
     Normals a measured rule's fit of a 3D cloud estimated itself are turned outward over thin
     rims before the degree loop (:func:`ipfit.round_rims`: on a dense, evenly
@@ -509,6 +518,10 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
     # A sparse mesh's faces add points where its vertices leave its surface bare (SearchOptions.mesh_points)
     # (max_degree was checked by check_settings; one beyond the limit is refused below, unsampled)
     wanted = rule.max_degree(dim) if max_degree is None else min(int(max_degree), basis.MAX_DEGREE[dim])
+    # a mesh whose fit measures poorly is fitted again on its surface (_on_surface)
+    surface = (pts, known, faces) if (dim == 3 and rule.measured and faces is not None and known is not None
+                                      and weights is None and method in REFINE_METHODS
+                                      and cast(SearchOptions, options).mesh_points is not None) else None
     on_faces = _on_faces(pts, known, faces, weights, options if method in REFINE_METHODS else None,
                          rule.points_per_coefficient * basis.n_coefficients(dim, wanted))
     sampled: tuple[str, ...] = ()
@@ -557,6 +570,7 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
     # first fit measures poorly.
     reorient = rule.measured and known is None and dim == 3
     second_pass = copy.deepcopy(generator) if reorient else None
+    surface_pass = copy.deepcopy(generator) if surface is not None else None
     unweighted_pass = copy.deepcopy(generator) if every is not None else None
     plain_pass = copy.deepcopy(generator) if for_noise else None
     layers_pass = copy.deepcopy(generator) if reorient and estimated is not None else None
@@ -608,6 +622,9 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
     if second_pass is not None and loop.reason != "interrupted" and (
             rule.best_clean_f(loop.results) < _POOR_BELOW or looks_noisy(pts)):
         loop = _reoriented(loop, cloud, unit, settings, second_pass, total)
+    if surface_pass is not None and loop.reason != "interrupted" and rule.best_clean_f(loop.results) < _POOR_BELOW:
+        loop, sampled = _on_surface(loop, cast(tuple, surface), cast(int, cast(SearchOptions, options).mesh_points),
+                                    settings, surface_pass, total, sampled)
     chosen = loop.results[loop.index]
     name = method if isinstance(method, str) else getattr(method, "__name__", "custom")
     success = loop.reason != "interrupted" and rule.success(loop.results, loop.index)
@@ -725,6 +742,39 @@ def _layered(loop: _Loop, cloud: Cloud, unit, noise: float | None, settings: _Lo
                 layered_cloud, layered)
     return dataclasses.replace(loop, notes=(*loop.notes, f"{share} and fitted again (measured no better: kept)")), \
         cloud, unit
+
+
+def _on_surface(loop: _Loop, mesh: tuple[NDArray, NDArray, NDArray], most: int, settings: _LoopSettings,
+                generator, total: list[_Loop], sampled: tuple[str, ...]) -> tuple[_Loop, tuple[str, ...]]:
+    """``(loop, sampled)``, or the degree loop run again on the ``mesh``'s vertices and ``most``
+    points spread evenly over its faces (its vertex normals interpolated there) with what the
+    message says of them, when that measures better against the faces.
+
+    A mesh's vertices sample its surface as its modeller placed them: a CAD or low-polygon mesh
+    leaves a jet's wings or a lamp's shade with a few big triangles and crowds its details, and
+    the fit, which weighs every point alike, follows the details and lets the bare parts go
+    (the Turk F-16: degree 2, F 0.84 on its vertices). The faces are what every degree is
+    measured against, so the look is judged where the answer is known (docs/quality-3d.md).
+    """
+    vertices, normals, faces = mesh
+    extra, extra_normals = surface_points(vertices, faces, normals, most)
+    if not len(extra):
+        return loop, sampled
+    note = f"fitted on the mesh's {len(vertices):,} vertices and {len(extra):,} points spread over its faces"
+    if settings.progress is not None:
+        settings.progress({"event": "mesh_points", "message": f"the fit measured poorly: {note}"})
+    points, unit = np.vstack([vertices, extra]), np.vstack([normals, extra_normals])
+    again = _another_loop(Cloud._checked(points, as_normals(unit, points), faces), unit, settings, generator,
+                          total)
+    if again is None:
+        return loop, sampled
+    better, new_f, old_f = _compared(again, loop, Cloud._checked(vertices, None, faces), settings.rule)
+    if better:
+        return (dataclasses.replace(again, notes=loop.notes),
+                (f"{note} (the first fit measured F {old_f:.3f} against the faces, this one {new_f:.3f})",))
+    note = (f"{note.replace('fitted on', 'a fit on')} measured F {new_f:.3f} against the faces, the first "
+            f"{old_f:.3f}: kept")
+    return dataclasses.replace(loop, notes=(*loop.notes, note)), sampled
 
 
 def _reoriented(loop: _Loop, cloud: Cloud, unit, settings: _LoopSettings, generator, total: list[_Loop]) -> _Loop:

@@ -184,8 +184,11 @@ class SearchOptions:
         degree asks for), each with its face's vertex normals interpolated at it
         (:func:`ipfit.geometry.sampling.surface_points`, fixed seed): its faces are the surface
         every degree is measured against, and its few vertices would stop the degrees early and
-        leave thin parts with hardly a point. None: the vertices only (the paper). Measured in
-        docs/mesh-points.md.
+        leave thin parts with hardly a point. A mesh whose first fit measures poorly (best clean
+        F-score below 0.95) is fitted again on its vertices and this many points spread over its
+        faces, kept when it measures better against them (:func:`ipfit.fit_adaptive`, Notes).
+        None: the vertices only (the paper). Measured in docs/mesh-points.md and
+        docs/quality-3d.md.
     stall_generations : int, None or "auto", default "auto"
         End DE/PSO when the best objective value has not improved by more than
         ``stall_tolerance`` (relative) over this many generations. None: always run
