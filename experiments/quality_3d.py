@@ -171,7 +171,9 @@ def markdown(rows: list[dict], seed: int, before_label: str, specs: dict[str, st
                   *conditioning(kappa, (6, 8, 10, 12), label="model")]
     lines += ["", "## Figures", "", "The selected zero set of each pipeline, the data's points drawn over it.", ""]
     lines += [f"![{m}](quality-3d/{m}.png)" for m in models]
-    lines += ["", "Regenerate: `git worktree add --detach ../ipfit-before 4a7a05d`, then "
+    # the label names the commit the page was compared with ("commit abc1234: ...")
+    commit = before_label.split(":")[0].removeprefix("commit ").strip() or "COMMIT"
+    lines += ["", f"Regenerate: `git worktree add --detach ../ipfit-before {commit}`, then "
               f"`python experiments/quality_3d.py --before ../ipfit-before --before-label \"{before_label}\"` "
               "(about 10 minutes on 2 cores); "
               "`--from-json docs/quality-3d.json` rewrites the page and figures from the stored rows.", ""]
