@@ -317,6 +317,24 @@ def test_the_second_fits_of_a_weighted_or_noisy_surface_are_announced():
                                               "1,234 normals turned to the fit's gradient, fitting again"]
 
 
+def test_every_event_of_a_fit_that_carries_a_message_is_printed():
+    # the events fit_adaptive sends with a 'message' (found in its source), each printed as it is
+    import io
+    import re
+    from pathlib import Path
+
+    import ipfit.degree.adaptive as adaptive
+    from ipfit.cli._progress import Progress
+
+    source = Path(adaptive.__file__).read_text()
+    kinds = set(re.findall(r'\{"event": "(\w+)", "message"', source))
+    assert {"mesh_points", "weights_variant", "normals_variant", "layers", "reorient"} <= kinds
+    for kind in sorted(kinds):
+        stream = io.StringIO()
+        Progress("lines", stream=stream)({"event": kind, "message": f"the {kind} line"})
+        assert stream.getvalue().splitlines() == [f"the {kind} line"], kind
+
+
 def test_the_topology_line_says_when_a_repair_reached_the_data_topology_but_was_not_kept():
     # The progress said "repaired to the data's topology, F-score 0.912" while the rule kept the
     # degree's own fit (below its band): the summary's line for that degree says so too, instead
