@@ -168,7 +168,8 @@ def markdown(rows: list[dict], seed: int) -> str:
               "(`Objective.whitening`), where every direction moves f and ∇f on the data alike (κ = 1); the start "
               "fits are solved by QR, never by the normal equations. Degree 20, the capture rule's last in 2D, is "
               "therefore as well posed for the search as degree 6; the rule also keeps at least 2 points per "
-              "coefficient (—: fewer points).", "",
+              "coefficient (—: fewer points). What evaluating the written monomial coefficients loses against "
+              "exact arithmetic, and κ of the whitened basis in float64: `docs/conditioning.md`.", "",
               *conditioning(), ""]
     lines += ["", "Regenerate: `git worktree add --detach ../ipfit-before 69d992a`, then "
               "`python experiments/degree_rule.py --before ../ipfit-before` (about 12 minutes on 2 cores); "

@@ -167,7 +167,8 @@ def markdown(rows: list[dict], seed: int, before_label: str, specs: dict[str, st
                   "are written in, the stacked values and gradients [M; ∂M/∂x; ∂M/∂y; ∂M/∂z] on each model's "
                   "normalised points. The search and the polish move in y = R a (`Objective.whitening`), where κ = 1 "
                   "on the data, and the start fits are solved by QR, so a degree-12 surface is as well posed for them as "
-                  "a degree-6 one; the stored monomial coefficients of a degree-12 fit are the ill-conditioned side.", "",
+                  "a degree-6 one; the stored monomial coefficients of a degree-12 fit are the ill-conditioned side "
+                  "(what that costs when they are evaluated: `docs/conditioning.md`).", "",
                   *conditioning(kappa, (6, 8, 10, 12), label="model")]
     lines += ["", "## Figures", "", "The selected zero set of each pipeline, the data's points drawn over it.", ""]
     lines += [f"![{m}](quality-3d/{m}.png)" for m in models]
