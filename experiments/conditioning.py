@@ -140,9 +140,10 @@ def page(data: dict) -> str:
              "data). The fit never solves in it: the start fits are solved by QR of the data's design matrix, and "
              "the search and the polish move in y = R a, R the triangular factor of the stacked values and "
              "gradients (`Objective.whitening`), a discrete orthonormal basis of the data's monomials, whose "
-             "condition number in float64 is the κ whitened column. The polish's variables are the monomial "
-             "coefficients themselves (preconditioned by R), so the coefficients written are the ones the "
-             "objective and the quality measure saw: no conversion between bases happens after the fit. What is "
+             "condition number in float64 is the κ whitened column. Every evaluation of the objective, though, is at "
+             "the monomial coefficients a = R⁻¹ y, and the coefficients written are that vector (scaled to unit "
+             "norm), the one the quality measure then judges: the fit's answer is its monomial vector, and no "
+             "conversion between bases happens after it. What is "
              "left to ask is whether evaluating the monomial form in float64 loses anything: the rounding columns "
              "compare it with exact arithmetic on the same coefficients.")
     header = ("| shape | N | degree | F | κ monomial | κ whitened − 1 | rounding on the data: max (median) of "
