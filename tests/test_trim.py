@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -239,6 +240,45 @@ def test_fit_refuses_trim_without_the_zero_set(cup_file, tmp_path, capsys):
                                   "-o", tmp_path / "x"])
     assert code == 2 and err.count("\n") == 1 and "--no-zero-set" in err, err
     assert not list(tmp_path.glob("x.*"))
+
+
+HINT = "part of the zero set lies away from the data"
+
+
+def _hints(out: str) -> list[str]:
+    return [line for line in out.splitlines() if line.startswith(HINT)]
+
+
+def test_fit_points_an_open_scan_at_trim(cup_file, tmp_path, capsys):
+    # the fit closes the cup with a lid: its zero set reaches all the data but not all of it is
+    # near the data, and the one line says so and which option takes the lid off
+    path, _ = cup_file
+    common = ["fit", path, "--degree", "4", "--method", "3l", "--no-picture"]
+    code, out, err = run(capsys, common + ["-o", tmp_path / "whole"])
+    assert code == 0, err
+    (hint,) = _hints(out)
+    precision, recall = (float(x) for x in re.search(r"precision ([0-9.]+) at recall ([0-9.]+)", hint).groups())
+    assert recall >= 0.9 and recall - precision >= 0.1
+    assert hint.endswith("--trim exports only the part near the data"), hint
+    code, out, err = run(capsys, common + ["--trim", "-o", tmp_path / "trimmed"])
+    assert code == 0 and not _hints(out), out  # asked for: the trimmed line instead
+    # without the zero set the hint names the command that writes it trimmed, and that command works
+    code, out, err = run(capsys, common + ["--no-zero-set", "-o", tmp_path / "json"])
+    assert code == 0, err
+    (hint,) = _hints(out)
+    command = re.search(r"`ipfit (mesh .+ --trim)` writes only", hint).group(1).split()
+    assert command[1] == str(tmp_path / "json.json")
+    code, out, err = run(capsys, [*command, "-o", tmp_path / "from-hint.ply"])
+    assert code == 0 and (tmp_path / "from-hint.ply").exists(), err
+
+
+def test_fit_gives_no_trim_hint_for_a_closed_shape(tmp_path, capsys, rng):
+    shape = synthetic.ellipsoid(1500, rng=rng)
+    path = ipfit.write_points(tmp_path / "ellipsoid.ply", shape.points, shape.normals)
+    code, out, err = run(capsys, ["fit", path, "--degree", "2", "--method", "3l", "--no-picture",
+                                  "-o", tmp_path / "fit"])
+    assert code == 0, err
+    assert not _hints(out), out
 
 
 def test_mesh_trim_uses_the_recorded_data_or_points(cup_file, tmp_path, capsys):

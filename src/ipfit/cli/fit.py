@@ -56,7 +56,9 @@ Outputs, all written together or not at all (-o PREFIX, or -o PREFIX.json):
 open; without DIST: 2 x the median point spacing, or 1% of the box diagonal if larger, holes
 between samples kept); the picture draws the trimmed part lighter and the HTML viewer shows the
 same trimmed zero sets; the polynomial and the JSON keep the whole fit, and one line says what
-went.
+went. Without --trim, one line says so when the selected zero set reaches the data but part of
+it lies away from the data (its precision at least 0.1 below its recall, the lid a polynomial
+puts over an open scan's opening).
 
 Odd degrees are accepted with a warning: their zero set is never bounded. Ctrl-C (or SIGTERM)
 stops cleanly: the outputs keep every degree already finished; before the first one, nothing
@@ -340,7 +342,31 @@ def run(args: argparse.Namespace) -> int:
         print("wrote " + ", ".join(str(beside(prefix, suffix)) for suffix in _suffixes(args, dim)))
         if trimmed:
             print(trimmed)
+        elif args.trim is None:
+            hint = _trim_hint(result.at_degree(result.selected_degree).quality, args, prefix)
+            if hint:
+                print(hint)
     return 130 if result.reason == "interrupted" else 0
+
+
+#: The zero set reaches the data (recall at least this) ...
+_HINT_RECALL = 0.9
+#: ... and has this much more of it away from the data than the data has away from it: a lid over
+#: an open scan (the open cup of tests/test_trim.py: precision 0.83-0.86 at recall 1), a sheet
+#: over a thin part; a closed shape fitted well has the two within a few hundredths (the bunny 0.998 / 0.998).
+_HINT_EXCESS = 0.1
+
+
+def _trim_hint(q, args: argparse.Namespace, prefix: Path) -> str | None:
+    """One line pointing at ``--trim`` when the selected zero set covers the data but part of it
+    lies away from the data, as a polynomial's zero set does over an open scan's openings."""
+    if q is None or q.recall < _HINT_RECALL or q.recall - q.precision < _HINT_EXCESS:
+        return None
+    how = (f"`ipfit mesh {beside(prefix, '.json')} --trim` writes" if args.no_zero_set else
+           "--trim exports")
+    return (f"part of the zero set lies away from the data (precision {q.precision:.3f} at recall "
+            f"{q.recall:.3f}): a polynomial's zero set closes over an open scan's openings; {how} only the "
+            "part near the data")
 
 
 def _topology_line(entry) -> str:
