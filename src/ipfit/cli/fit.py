@@ -365,7 +365,7 @@ def _trim_hint(q, args: argparse.Namespace, prefix: Path) -> str | None:
     how = (f"`ipfit mesh {beside(prefix, '.json')} --trim` writes" if args.no_zero_set else
            "--trim exports")
     return (f"part of the zero set lies away from the data (precision {q.precision:.3f} at recall "
-            f"{q.recall:.3f}): a polynomial's zero set closes over an open scan's openings; {how} only the "
+            f"{q.recall:.3f}: a lid over an open scan's opening, or a bulge past a thin part); {how} only the "
             "part near the data")
 
 
