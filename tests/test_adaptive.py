@@ -391,3 +391,25 @@ def test_a_flat_3d_cloud_is_fitted_with_a_warning_that_names_its_plane():
     slab = flat.copy()
     slab[:, 2] = np.random.default_rng(1).normal(scale=1e-4, size=len(slab))
     assert _caught(slab) == []
+
+
+def _star(n: int) -> np.ndarray:
+    """n points on a five-lobed star r = 1 + 0.3 cos 5θ: about degree 6 captures it."""
+    t = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    radius = 1 + 0.3 * np.cos(5 * t)
+    return np.column_stack([radius * np.cos(t), radius * np.sin(t)])
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_a_sparse_cloud_stopped_by_its_points_says_so(seed):
+    # 40 points hold 2 per coefficient up to degree 4 (15 coefficients) and the star needs more:
+    # the loop ends there, the fit takes it, and the message says why and how to go on
+    result = fit_adaptive(_star(40), rng=seed)
+    assert result.reason == "max_degree" and result.selected_degree == 4
+    assert result.message.endswith("40 points allow degrees up to 4 at 2 points per coefficient, so degree 4 was "
+                                   "the last; more points, or a higher maximum degree, go further")
+    # the way out it names: an explicit maximum goes to 1 point per coefficient (degree 6: 28), with no such line
+    higher = fit_adaptive(_star(40), max_degree=6, rng=seed)
+    assert max(d.degree for d in higher.degrees) == 6 and "points allow" not in higher.message
+    # enough points: the rule's own stop, no such line
+    assert "points allow" not in fit_adaptive(_star(56), rng=seed).message

@@ -628,10 +628,17 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
     chosen = loop.results[loop.index]
     name = method if isinstance(method, str) else getattr(method, "__name__", "custom")
     success = loop.reason != "interrupted" and rule.success(loop.results, loop.index)
+    # a sparse cloud's last degree is its number of points', not the rule's: when the fit took it,
+    # say so, and how to go on
+    last = max(r.degree for r in loop.results)
+    capped = (f"{len(pts):,} points allow degrees up to {top} at {rule.points_per_coefficient} points per "
+              f"coefficient, so degree {last} was the last; more points, or a higher maximum degree, go further",) \
+        if (loop.reason == "max_degree" and max_degree is None and top < rule.max_degree(dim)
+            and chosen.degree == last) else ()
     return AdaptiveResult(
         x=chosen.x, fun=chosen.fun, nit=sum(r.nit for done in total for r in done.results),
         nfev=sum(r.nfev for done in total for r in done.results), success=success,
-        message="; ".join((loop.message, *loop.notes, *sampled)), polynomial=chosen.polynomial,
+        message="; ".join((loop.message, *loop.notes, *sampled, *capped)), polynomial=chosen.polynomial,
         selected_degree=chosen.degree, degrees=tuple(loop.results), reason=loop.reason, epsilon=epsilon, delta=delta,
         method=name, rule=rule.name, seconds=time.perf_counter() - start,
         options=options if method in REFINE_METHODS else None, outliers=scored)
