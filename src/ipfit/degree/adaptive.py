@@ -631,10 +631,11 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
     # a sparse cloud's last degree is its number of points', not the rule's: when the fit took it,
     # say so, and how to go on
     last = max(r.degree for r in loop.results)
-    capped = (f"{len(pts):,} points allow degrees up to {top} at {rule.points_per_coefficient} points per "
-              f"coefficient, so degree {last} was the last; more points, or a higher maximum degree, go further",) \
-        if (loop.reason == "max_degree" and max_degree is None and top < rule.max_degree(dim)
-            and chosen.degree == last) else ()
+    capped: tuple[str, ...] = ()
+    if loop.reason == "max_degree" and max_degree is None and top < rule.max_degree(dim) and chosen.degree == last:
+        note = (f"{len(pts):,} points allow degrees up to {top} at {rule.points_per_coefficient} points per "
+                f"coefficient, so degree {last} was the last; more points, or a higher maximum degree, go further")
+        capped = (note,)
     return AdaptiveResult(
         x=chosen.x, fun=chosen.fun, nit=sum(r.nit for done in total for r in done.results),
         nfev=sum(r.nfev for done in total for r in done.results), success=success,
