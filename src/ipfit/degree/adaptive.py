@@ -629,10 +629,12 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
     name = method if isinstance(method, str) else getattr(method, "__name__", "custom")
     success = loop.reason != "interrupted" and rule.success(loop.results, loop.index)
     # a sparse cloud's last degree is its number of points', not the rule's: when the fit took it,
-    # say so, and how to go on
+    # say so, and how to go on (an explicit maximum allows one point per coefficient, so only a
+    # rule that asks for more leaves room to)
     last = max(r.degree for r in loop.results)
     capped: tuple[str, ...] = ()
-    if loop.reason == "max_degree" and max_degree is None and top < rule.max_degree(dim) and chosen.degree == last:
+    if loop.reason == "max_degree" and max_degree is None and top < rule.max_degree(dim) and chosen.degree == last \
+            and rule.points_per_coefficient > 1:
         note = (f"{len(pts):,} points allow degrees up to {top} at {rule.points_per_coefficient} points per "
                 f"coefficient, so degree {last} was the last; more points, or a higher maximum degree, go further")
         capped = (note,)
