@@ -349,18 +349,19 @@ def run(args: argparse.Namespace) -> int:
     return 130 if result.reason == "interrupted" else 0
 
 
-#: The zero set reaches the data (recall at least this) ...
-_HINT_RECALL = 0.9
-#: ... and has this much more of it away from the data than the data has away from it: a lid over
-#: an open scan (the open cup of tests/test_trim.py: precision 0.83-0.86 at recall 1), a sheet
-#: over a thin part; a closed shape fitted well has the two within a few hundredths (the bunny 0.998 / 0.998).
+#: The zero set reaches the data (recall at least the capture rule's REPAIR_RECALL) and has this
+#: much more of it away from the data than the data has away from it: a lid over an open scan (the
+#: open cup of tests/test_trim.py: precision 0.83-0.86 at recall 1), a sheet over a thin part; a
+#: closed shape fitted well has the two within a few hundredths (the bunny 0.998 / 0.998).
 _HINT_EXCESS = 0.1
 
 
 def _trim_hint(q, args: argparse.Namespace, prefix: Path) -> str | None:
     """One line pointing at ``--trim`` when the selected zero set covers the data but part of it
     lies away from the data, as a polynomial's zero set does over an open scan's openings."""
-    if q is None or q.recall < _HINT_RECALL or q.recall - q.precision < _HINT_EXCESS:
+    from ..degree.rules import REPAIR_RECALL
+
+    if q is None or q.recall < REPAIR_RECALL or q.recall - q.precision < _HINT_EXCESS:
         return None
     how = (f"`ipfit mesh {beside(prefix, '.json')} --trim` writes" if args.no_zero_set else
            "--trim exports")

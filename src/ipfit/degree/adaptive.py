@@ -519,9 +519,9 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
     # (max_degree was checked by check_settings; one beyond the limit is refused below, unsampled)
     wanted = rule.max_degree(dim) if max_degree is None else min(int(max_degree), basis.MAX_DEGREE[dim])
     # a mesh whose fit measures poorly is fitted again on its surface (_on_surface)
-    surface = (pts, known, faces) if (dim == 3 and rule.measured and faces is not None and known is not None
-                                      and weights is None and method in REFINE_METHODS
-                                      and cast(SearchOptions, options).mesh_points is not None) else None
+    most = cast(SearchOptions, options).mesh_points if method in REFINE_METHODS else None
+    surface = (pts, known, faces, most) if (dim == 3 and rule.measured and faces is not None and known is not None
+                                            and weights is None and most is not None) else None
     on_faces = _on_faces(pts, known, faces, weights, options if method in REFINE_METHODS else None,
                          rule.points_per_coefficient * basis.n_coefficients(dim, wanted))
     sampled: tuple[str, ...] = ()
@@ -622,9 +622,9 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
     if second_pass is not None and loop.reason != "interrupted" and (
             rule.best_clean_f(loop.results) < _POOR_BELOW or looks_noisy(pts)):
         loop = _reoriented(loop, cloud, unit, settings, second_pass, total)
-    if surface_pass is not None and loop.reason != "interrupted" and rule.best_clean_f(loop.results) < _POOR_BELOW:
-        loop, sampled = _on_surface(loop, cast(tuple, surface), cast(int, cast(SearchOptions, options).mesh_points),
-                                    settings, surface_pass, total, sampled)
+    if surface is not None and surface_pass is not None and loop.reason != "interrupted" and \
+            rule.best_clean_f(loop.results) < _POOR_BELOW:
+        loop, sampled = _on_surface(loop, surface, settings, surface_pass, total, sampled)
     chosen = loop.results[loop.index]
     name = method if isinstance(method, str) else getattr(method, "__name__", "custom")
     success = loop.reason != "interrupted" and rule.success(loop.results, loop.index)
@@ -754,10 +754,10 @@ def _layered(loop: _Loop, cloud: Cloud, unit, noise: float | None, settings: _Lo
         cloud, unit
 
 
-def _on_surface(loop: _Loop, mesh: tuple[NDArray, NDArray, NDArray], most: int, settings: _LoopSettings,
+def _on_surface(loop: _Loop, mesh: tuple[NDArray, NDArray, NDArray, int], settings: _LoopSettings,
                 generator, total: list[_Loop], sampled: tuple[str, ...]) -> tuple[_Loop, tuple[str, ...]]:
     """``(loop, sampled)``, or the degree loop run again on the ``mesh``'s vertices and ``most``
-    points spread evenly over its faces (its vertex normals interpolated there) with what the
+    (its last item) points spread evenly over its faces (its vertex normals interpolated there) with what the
     message says of them, when that measures better against the faces.
 
     A mesh's vertices sample its surface as its modeller placed them: a CAD or low-polygon mesh
@@ -766,7 +766,7 @@ def _on_surface(loop: _Loop, mesh: tuple[NDArray, NDArray, NDArray], most: int, 
     (the Turk F-16: degree 2, F 0.84 on its vertices). The faces are what every degree is
     measured against, so the look is judged where the answer is known (docs/quality-3d.md).
     """
-    vertices, normals, faces = mesh
+    vertices, normals, faces, most = mesh
     extra, extra_normals = surface_points(vertices, faces, normals, most)
     if not len(extra):
         return loop, sampled
