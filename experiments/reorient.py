@@ -9,7 +9,7 @@ Usage::
 Each 3D shape is corrupted by issue 30's protocol (``experiments/robust.py``'s ``corrupt``, the
 very points of ``../shared/tools/corrupt.py``: bare, shuffled, clean or with Gaussian noise of
 σ = 0.5 % or 1 % of the box diagonal) and fitted by ``fit_adaptive(points, rng=seed)`` twice in the same worker:
-with the second looks switched off (``ipfit.degree.adaptive._REORIENT_FEWEST`` set above 1,
+with the second looks switched off (``ipfit.degree.looks._REORIENT_FEWEST`` set above 1,
 so that no share of turned normals is enough, and ``_POOR_BELOW`` below 0, so that no fit
 measures poorly) and as shipped: the second pass with the fit's signs, where ``'auto'``
 left points out and the fit measures poorly, the fit on every point unweighted, and, where the
@@ -49,21 +49,21 @@ CONDITIONS = ("clean", "noise-0.5", "noise-1")
 def run_case(shape: str, path: str, condition: str, seed: int) -> dict:
     """One shape under one condition: the fit without and with the second pass, scored on the clean mesh."""
     from ipfit import fit_adaptive
-    from ipfit.degree import adaptive
+    from ipfit.degree import looks
     from ipfit.zeroset.quality import quality
 
     clean, faces = robust.read_clean(path)
     points, _ = robust.corrupt(clean, path, *robust.CONDITIONS[condition])
     row: dict = {"shape": shape, "condition": condition, "n": len(points)}
-    shipped = adaptive._REORIENT_FEWEST, adaptive._POOR_BELOW
+    shipped = looks._REORIENT_FEWEST, looks._POOR_BELOW
     # once: no share of turned normals is enough, no first fit measures poorly
     for label, (fewest, poor) in (("once", (2.0, -1.0)), ("twice", shipped)):
-        adaptive._REORIENT_FEWEST, adaptive._POOR_BELOW = fewest, poor
+        looks._REORIENT_FEWEST, looks._POOR_BELOW = fewest, poor
         start = time.perf_counter()
         try:
             result = fit_adaptive(points, rng=seed)
         finally:
-            adaptive._REORIENT_FEWEST, adaptive._POOR_BELOW = shipped
+            looks._REORIENT_FEWEST, looks._POOR_BELOW = shipped
         seconds = time.perf_counter() - start
         q = quality(result.polynomial, clean, faces=faces)
         row[label] = {"f_score": q.f_score, "degree": result.selected_degree, "n_spurious": q.n_spurious,

@@ -252,7 +252,7 @@ def test_fit_points_is_checked():
 
 
 def test_a_polynomial_moved_to_another_normalisation_is_the_same_polynomial(rng):
-    from ipfit.degree.adaptive import _renormalised
+    from ipfit.degree.loop import _renormalised
     from ipfit.polynomial import ImplicitPolynomial, Normalization
 
     shape = synthetic.torus(500, rng=rng)

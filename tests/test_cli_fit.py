@@ -161,16 +161,16 @@ def test_help_lists_every_option():
 
 
 def test_ctrl_c_keeps_every_finished_degree(tmp_path, monkeypatch):
-    import ipfit.degree.adaptive as adaptive
+    import ipfit.degree.loop as loop
 
-    real = adaptive.fit_linear
+    real = loop.fit_linear
 
     def interrupting(points, normals, degree, method, **params):
         if degree == 6:
             raise KeyboardInterrupt
         return real(points, normals, degree, method, **params)
 
-    monkeypatch.setattr(adaptive, "fit_linear", interrupting)
+    monkeypatch.setattr(loop, "fit_linear", interrupting)
     code = main(["fit", "boot", "-o", str(tmp_path / "boot"), "--method", "3l", "--epsilon", "-1", "--rule", "paper",
                  "--quiet"])
     assert code == 130
@@ -318,7 +318,7 @@ def test_the_second_fits_of_a_weighted_or_noisy_surface_are_announced():
 
 
 def test_every_event_of_a_fit_that_carries_a_message_is_printed():
-    # the events fit_adaptive sends with a 'message' (found in its source), each printed as it is
+    # the events fit_adaptive sends with a 'message' (found in the degree package's sources), each printed as it is
     import io
     import re
     from pathlib import Path
@@ -326,7 +326,7 @@ def test_every_event_of_a_fit_that_carries_a_message_is_printed():
     import ipfit.degree.adaptive as adaptive
     from ipfit.cli._progress import Progress
 
-    source = Path(adaptive.__file__).read_text()
+    source = "".join(path.read_text() for path in Path(adaptive.__file__).parent.glob("*.py"))
     kinds = set(re.findall(r'\{"event": "(\w+)", "message"', source))
     assert {"mesh_points", "weights_variant", "normals_variant", "layers", "reorient"} <= kinds
     for kind in sorted(kinds):

@@ -18,7 +18,7 @@ from scipy.spatial.transform import Rotation
 
 import ipfit
 from ipfit.datasets import synthetic
-from ipfit.degree import adaptive
+from ipfit.degree import adaptive, looks
 from ipfit.normals.estimate import layered_normals
 from ipfit.normals.orient import _layer_votes
 
@@ -81,13 +81,13 @@ def test_the_layered_fit_is_kept_only_when_it_measures_better(seed, offset, monk
     # The estimate is replaced by exact torus normals with a cap turned inside out, and the
     # variant by the exact ones: the first fit is poor, the variant measures better and is kept.
     # Then the other way round, every fit looked at again: the variant is worse and is not kept.
-    monkeypatch.setattr(adaptive, "_REORIENT_FEWEST", 2.0)  # the fit's-gradient pass out of the way
+    monkeypatch.setattr(looks, "_REORIENT_FEWEST", 2.0)  # the fit's-gradient pass out of the way
     rng = np.random.default_rng(seed + offset)
     shape = synthetic.torus(800, rng=rng)
     points, exact = shape.points, shape.normals
     wrong = _cap_inside_out(exact, points)
     monkeypatch.setattr(adaptive, "estimate_normals", lambda pts, **_: wrong)
-    monkeypatch.setattr(adaptive, "layered_normals", lambda pts, noise=None: exact)
+    monkeypatch.setattr(looks, "layered_normals", lambda pts, noise=None: exact)
     events: list[dict] = []
     fixed = ipfit.fit_adaptive(points, max_degree=4, rng=seed, progress=events.append)
     assert sum(e["event"] == "layers" for e in events) == 1
@@ -95,9 +95,9 @@ def test_the_layered_fit_is_kept_only_when_it_measures_better(seed, offset, monk
     assert ipfit.quality(fixed.polynomial, points).f_score > 0.95
     assert fixed.nfev > sum(d.nfev for d in fixed.degrees)  # every loop's evaluations counted
 
-    monkeypatch.setattr(adaptive, "_POOR_BELOW", 1.01)  # every first fit looked at again
+    monkeypatch.setattr(looks, "_POOR_BELOW", 1.01)  # every first fit looked at again
     monkeypatch.setattr(adaptive, "estimate_normals", lambda pts, **_: exact)
-    monkeypatch.setattr(adaptive, "layered_normals", lambda pts, noise=None: wrong)
+    monkeypatch.setattr(looks, "layered_normals", lambda pts, noise=None: wrong)
     kept = ipfit.fit_adaptive(points, max_degree=4, rng=seed)
     once = ipfit.fit_adaptive(points, exact, max_degree=4, rng=seed)
     assert "close-layer vote (degree" in kept.message and "measured no better: kept" in kept.message
@@ -107,8 +107,8 @@ def test_the_layered_fit_is_kept_only_when_it_measures_better(seed, offset, monk
 def test_the_layered_look_needs_estimated_normals_a_measuring_rule_and_3d(seed, monkeypatch):
     # every first fit looked at again, a variant that differs everywhere: still no look where the
     # normals are the user's, under the paper's rule, or in 2D
-    monkeypatch.setattr(adaptive, "_POOR_BELOW", 1.01)
-    monkeypatch.setattr(adaptive, "layered_normals", lambda pts, noise=None: -ipfit.estimate_normals(pts))
+    monkeypatch.setattr(looks, "_POOR_BELOW", 1.01)
+    monkeypatch.setattr(looks, "layered_normals", lambda pts, noise=None: -ipfit.estimate_normals(pts))
     rng = np.random.default_rng(seed)
     torus = synthetic.torus(600, rng=rng)
     circle = synthetic.circle(200, rng=rng)

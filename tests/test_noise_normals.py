@@ -15,7 +15,8 @@ import pytest
 
 import ipfit
 from ipfit.datasets import synthetic
-from ipfit.degree import adaptive
+from ipfit.degree import adaptive, looks
+from ipfit.degree.loop import LoopSettings, degree_loop
 from ipfit.fitting.options import DEFAULT_DELTA, DEFAULT_EPSILON
 
 
@@ -73,22 +74,22 @@ def test_the_look_with_the_nearest_points_normals_keeps_the_fit_that_measures_be
     wrong = np.where(shape.points[:, :1] > 0.0, -truth, truth)
     method, options, rule, epsilon, delta, min_degree = adaptive.check_settings(
         "de+polish", None, "capture", DEFAULT_EPSILON, DEFAULT_DELTA, 2, 4)
-    settings = adaptive._LoopSettings(method, options, rule, epsilon, delta, min_degree, 4, None, None, False)
+    settings = LoopSettings(method, options, rule, epsilon, delta, min_degree, 4, None, None, False)
 
     def loop(normals, stream):
         cloud = ipfit.Cloud(points, normals)
-        return adaptive._degree_loop(cloud, normals, settings, np.random.default_rng(stream)), cloud
+        return degree_loop(cloud, normals, settings, np.random.default_rng(stream)), cloud
 
     inside_out, wrong_cloud = loop(wrong, seed)
     right, right_cloud = loop(truth, seed)
-    assert rule.best_clean_f(inside_out.results) < adaptive._POOR_BELOW  # the case the look is for
+    assert rule.best_clean_f(inside_out.results) < looks._POOR_BELOW  # the case the look is for
     total: list = []
-    kept, cloud, unit = adaptive._plain_normals(inside_out, wrong_cloud, wrong, truth, settings,
+    kept, cloud, unit = looks._plain_normals(inside_out, wrong_cloud, wrong, truth, settings,
                                                 np.random.default_rng(seed), total)
     assert len(total) == 1 and unit is truth and np.allclose(cloud.oriented, truth)
     assert kept.notes[-1].startswith("normals: estimated without the noise's σ")
     assert ipfit.quality(kept.results[kept.index].polynomial, shape.points).f_score > 0.95
-    kept, cloud, unit = adaptive._plain_normals(right, right_cloud, truth, wrong, settings,
+    kept, cloud, unit = looks._plain_normals(right, right_cloud, truth, wrong, settings,
                                                 np.random.default_rng(seed), total)
     assert unit is truth and cloud is right_cloud and kept.results is right.results
     assert kept.notes[-1].startswith("normals: estimated for the noise")

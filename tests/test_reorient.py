@@ -17,8 +17,8 @@ import pytest
 
 import ipfit
 from ipfit.datasets import synthetic
-from ipfit.degree import adaptive
-from ipfit.degree.adaptive import _against_gradient
+from ipfit.degree import looks
+from ipfit.degree.looks import _against_gradient
 from ipfit.degree.rules import get_rule
 from ipfit.normals.estimate import looks_noisy
 
@@ -104,17 +104,17 @@ def test_the_second_pass_needs_estimated_normals_and_a_measuring_rule(seed):
 
 def test_a_clean_cloud_is_fitted_again_only_when_its_first_fit_measures_poorly(seed, monkeypatch):
     # any turned normal is enough here, so that only the first fit's measured quality decides
-    monkeypatch.setattr(adaptive, "_REORIENT_FEWEST", -1.0)
+    monkeypatch.setattr(looks, "_REORIENT_FEWEST", -1.0)
     rng = np.random.default_rng(seed)
     bunny = ipfit.load(BUNNY)
     points = bunny.points[rng.permutation(len(bunny.points))]
     assert not looks_noisy(points)
     for top in (None, 4):  # degree 4 cannot follow the ears: below the bar
         events: list[dict] = []
-        shipped = adaptive._POOR_BELOW
-        monkeypatch.setattr(adaptive, "_POOR_BELOW", 0.0)  # the first fit alone
+        shipped = looks._POOR_BELOW
+        monkeypatch.setattr(looks, "_POOR_BELOW", 0.0)  # the first fit alone
         once = ipfit.fit_adaptive(points, rng=seed, max_degree=top)
-        monkeypatch.setattr(adaptive, "_POOR_BELOW", shipped)
+        monkeypatch.setattr(looks, "_POOR_BELOW", shipped)
         twice = ipfit.fit_adaptive(points, rng=seed, max_degree=top, progress=events.append)
         assert "fitted again" not in once.message
         first = get_rule(once.rule).best_clean_f(once.degrees)

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import ipfit
-from ipfit.degree import adaptive
+from ipfit.degree import loop
 from ipfit.normals.rims import round_rims
 
 
@@ -103,7 +103,7 @@ def _counting(monkeypatch):
         calls.append(len(args[0]))
         return round_rims(*args, **kwargs)
 
-    monkeypatch.setattr(adaptive, "round_rims", counted)
+    monkeypatch.setattr(loop, "round_rims", counted)
     return calls
 
 

@@ -98,7 +98,8 @@ def test_the_kept_weighting_is_the_one_that_measures_better():
     # F-score on the points both trust, and never a clean zero set with one that is not there.
     from types import SimpleNamespace
 
-    from ipfit.degree.adaptive import _Loop, _measures_better
+    from ipfit.degree.looks import _measures_better
+    from ipfit.degree.loop import Loop
     from ipfit.degree.rules import CAPTURE
 
     shape = synthetic.circle(200)
@@ -113,7 +114,7 @@ def test_the_kept_weighting_is_the_one_that_measures_better():
     assert q["shifted"].f_score < q["exact"].f_score
 
     def loop(poly):
-        return _Loop([SimpleNamespace(polynomial=poly)], 0, "captured", "")
+        return Loop([SimpleNamespace(polynomial=poly)], 0, "captured", "")
 
     def better(one, other):
         return _measures_better(loop(one), loop(other), points, CAPTURE)
@@ -297,9 +298,9 @@ def test_planted_strays_do_not_pull_the_unweighted_look(seed, monkeypatch):
     # cloud's thin parts can score as strays), and that fit is kept only when it measures better
     # on the points the score trusts. Forced here on a sphere with 30 % planted strays: whichever
     # is kept, the zero set is the sphere's, and the result says which.
-    from ipfit.degree import adaptive
+    from ipfit.degree import looks
 
-    monkeypatch.setattr(adaptive, "_POOR_BELOW", 1.01)
+    monkeypatch.setattr(looks, "_POOR_BELOW", 1.01)
     rng = np.random.default_rng(seed)
     cloud, _ = with_outliers(synthetic.sphere(800, radius=1.0, rng=rng).points, 0.3, rng)
     events = []
@@ -319,12 +320,12 @@ def test_the_unweighted_look_records_what_it_kept(seed, offset, monkeypatch):
     # A sparse thin torus (400 points, tube radius 0.1) whose clean points 'auto' scores as strays
     # on some seeds (0 and 5: 39 and 34 points); the unweighted look forced. Whichever fit is
     # kept, the result says so: kept, no point left out; not kept, the score's outliers stand.
-    from ipfit.degree import adaptive
+    from ipfit.degree import looks
 
     seed += offset
     shape = synthetic.torus(400, 1.0, 0.1, rng=np.random.default_rng(seed))
     flagged = ipfit.score_outliers(shape.points).count
-    monkeypatch.setattr(adaptive, "_POOR_BELOW", 1.01)
+    monkeypatch.setattr(looks, "_POOR_BELOW", 1.01)
     events = []
     result = ipfit.fit_adaptive(shape.points, max_degree=4, rng=seed, progress=events.append)
     ran = any("on every point, unweighted" in e.get("message", "") for e in events)

@@ -726,7 +726,7 @@ def test_a_degree_left_not_clean_takes_the_best_clean_one_of_the_searchs_other_s
     # poles only (clean, lower F) and one has a loop again. The circle comes back, every other
     # solution is recorded, and the degree keeps its method name, evaluations and the time
     # of the measurements.
-    from ipfit.degree.adaptive import _measured_fit
+    from ipfit.degree.loop import _measured_fit
     from ipfit.degree.repair import other_solutions
     from ipfit.fitting.objective import DEFAULT_DELTA
     from ipfit.fitting.options import RECOMMENDED

@@ -15,7 +15,7 @@ import trimesh
 
 import ipfit
 from ipfit.datasets import synthetic
-from ipfit.degree import adaptive
+from ipfit.degree import looks
 from ipfit.zeroset.quality import quality
 
 
@@ -64,7 +64,7 @@ def test_the_look_is_not_kept_when_it_measures_worse(cube, seed, monkeypatch):
         points, unit = ipfit.geometry.sampling.surface_points(vertices, faces, normals, n, rng=rng)
         return 1.5 * points, unit
 
-    monkeypatch.setattr(adaptive, "surface_points", outside)
+    monkeypatch.setattr(looks, "surface_points", outside)
     result = ipfit.fit_adaptive(cube, rng=seed, max_degree=4)
     alone = ipfit.fit_adaptive(cube, rng=seed, max_degree=4, options=ipfit.RECOMMENDED.replace(mesh_points=None))
     assert "a fit on the mesh's 1,685 vertices and 2,000 points spread over its faces measured F" in result.message

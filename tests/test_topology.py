@@ -567,14 +567,14 @@ def test_a_topology_repair_ends_with_a_round_from_its_best_clean_round(seed, mon
     variant measures the search's other solutions first, then runs the repair's rounds from the
     degree's own fit, and ends with one more from its best clean round of one loop."""
     from ipfit import fit_adaptive
-    from ipfit.degree import adaptive, repair
+    from ipfit.degree import loop, repair
     from ipfit.degree.rules import TOPOLOGY
     from ipfit.normals import contour_normals
 
     rounds = []  # (degree, start, result) of every refit of a topology variant
 
     def recorded(entry, refit, options, cloud, ordered_contour, rule, best_f=0.0):
-        if not isinstance(rule, adaptive._WithinTolerance):
+        if not isinstance(rule, loop._WithinTolerance):
             return repair.repair(entry, refit, options, cloud, ordered_contour, rule, best_f)
 
         def refit_and_record(options, start, keep_clear):
@@ -583,7 +583,7 @@ def test_a_topology_repair_ends_with_a_round_from_its_best_clean_round(seed, mon
             return trial
         return repair.repair(entry, refit_and_record, options, cloud, ordered_contour, rule, 1.0)
 
-    monkeypatch.setattr(adaptive, "repair", recorded)
+    monkeypatch.setattr(loop, "repair", recorded)
     points = _dumbbell()
     result = fit_adaptive(points, contour_normals(points), ordered_contour=True, rule=_StopsAtFour(), min_degree=4,
                           max_degree=6, rng=seed)
@@ -623,7 +623,7 @@ def test_another_solution_of_the_data_topology_spares_the_repair():
     """When one of the search's other solutions of a degree has the data's topology within the
     tolerance, the topology variant takes it and runs no repair round."""
     from ipfit import fit_adaptive
-    from ipfit.degree.adaptive import _measured_fit, _topology_variant
+    from ipfit.degree.loop import _measured_fit, _topology_variant
     from ipfit.fitting.options import RECOMMENDED
     from ipfit.normals import contour_normals
 

@@ -34,7 +34,7 @@ _LAZY = {
     "SearchOptions": "fitting.options", "RECOMMENDED": "fitting.options", "PAPER": "fitting.options",
     "PAPER_METHOD": "fitting.options", "PAPER_RULE": "fitting.options",
     "REFINE_METHODS": "fitting.refine", "RefineResult": "fitting.refine", "refine": "fitting.refine",
-    "AdaptiveResult": "degree.adaptive", "DegreeResult": "degree.adaptive", "fit_adaptive": "degree.adaptive",
+    "AdaptiveResult": "degree.adaptive", "DegreeResult": "degree.loop", "fit_adaptive": "degree.adaptive",
     "select_degree": "degree.adaptive",
     "DegreeRule": "degree.rules",
     "ZeroSet": "zeroset.extract", "extract_zero_set": "zeroset.extract", "grid_values": "zeroset.extract",

@@ -3,8 +3,8 @@
 A degree the rule does not count as done (:meth:`ipfit.degree.rules.DegreeRule.is_done`: a zero set
 that is not clean, with spurious components or open sheets, or, for the capture rule, a clean
 one that bulges away from the data) gets its stray zero set sampled and held clear by the
-far-field term in a short L-BFGS polish from its fit (:func:`repair`). The adaptive loop
-(:mod:`ipfit.degree.adaptive`) calls it; the rounds tried are recorded in ``DegreeResult.cleanup``.
+far-field term in a short L-BFGS polish from its fit (:func:`repair`). The degree loop
+(:mod:`ipfit.degree.loop`) calls it; the rounds tried are recorded in ``DegreeResult.cleanup``.
 What counts as clean or done is the rule's; this module only repairs.
 
 A zero set of another topology than the data's (a thin part cut off as its own loop, a loop in
