@@ -429,8 +429,12 @@ def fit_adaptive(points: ArrayLike | Cloud, normals: ArrayLike | None = None, *,
     # the rule measures the fits that the second pass must beat, and the cloud looks noisy or its
     # first fit measures poorly.
     reorient = rule.measured and known is None and dim == 3
+    # a sparse bare 3D cloud whose fit measures poorly is fitted again with points spread between its
+    # points too (looks._on_local_surface), as a mesh is on its faces
+    local_surface = most if reorient and faces is None else None
     looks = Looks(scored=scored, scored_weights=scored_weights, every=every, estimated=estimated,
-                  confident=confident, reorient=reorient, for_noise=for_noise, surface=surface)
+                  confident=confident, reorient=reorient, for_noise=for_noise, surface=surface,
+                  local_surface=local_surface)
     outcome = fit_with_looks(cloud, unit, settings, generator, looks, sampled)
     loop, total, scored, sampled = outcome.loop, outcome.loops, outcome.scored, outcome.sampled
     chosen = loop.results[loop.index]

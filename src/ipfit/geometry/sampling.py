@@ -9,19 +9,29 @@ is chosen so that about ``n`` cells are occupied, which keeps sparse regions rep
 gives each point's distance to its k-th nearest neighbour: the sampling gaps that the quality
 measures, the trim distance and the repairs allow for on a bare cloud.
 :func:`surface_points` goes the other way for a mesh: points spread evenly over its faces, with
-normals interpolated from its vertices', where its vertices sample the surface too sparsely.
+normals interpolated from its vertices', where its vertices sample the surface too sparsely;
+:func:`local_triangles` gives a bare 3D cloud such faces from its points alone.
 """
 
 from __future__ import annotations
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.spatial import Delaunay, QhullError, cKDTree
 
 from .._utils.numeric import unit_rows_mask
 from .._utils.validation import as_faces, as_points, check_int, check_rng, error
 from ..cloud import Cloud, as_cloud
 
-__all__ = ["spread_subsample", "point_spacing", "surface_points"]
+__all__ = ["spread_subsample", "point_spacing", "surface_points", "local_triangles"]
+
+# local_triangles: a point's umbrella is cut from its LOCAL_NEIGHBOURS nearest points; a triangle with
+# an edge longer than LOCAL_EDGE spacings of its corners (each point's median distance to its 6 nearest)
+# spans a gap, not the surface, and a triangle whose plane leaves a vertex's normal by more than acos(LOCAL_COS) spans
+# a fold or both sides of a thin part.
+LOCAL_NEIGHBOURS = 10
+LOCAL_EDGE = 3.0
+LOCAL_COS = 0.7
 
 
 def point_spacing(points: ArrayLike | Cloud, k: int = 1) -> NDArray[np.float64]:
@@ -171,3 +181,85 @@ def surface_points(vertices: ArrayLike, faces: ArrayLike, normals: ArrayLike, n:
     interpolated, ok = unit_rows_mask(np.einsum("ij,ijk->ik", w, vn[tri[face]]))
     own = unit_rows_mask(cross[face])[0]
     return points, np.where(ok[:, None], interpolated, own)
+
+
+def local_triangles(points: ArrayLike, normals: ArrayLike) -> NDArray[np.int64]:
+    """Triangles between neighbouring points of a bare 3D cloud: the faces a mesh of it would have
+    where its points sample a surface, from the points and their oriented normals alone.
+
+    Each point's umbrella: its :data:`LOCAL_NEIGHBOURS` nearest points, without those whose normal
+    faces the other way (the other side of a thin part) or that lie more across its tangent plane
+    than along it (one side of a fold seen from the other), projected onto the tangent plane; the
+    triangles of their 2D Delaunay triangulation that have the point as a corner. Every triangle
+    found from any corner is kept once, unless an edge is longer than :data:`LOCAL_EDGE` times
+    the largest spacing of its corners (a gap in the sampling) or its plane turns from a corner's
+    normal by more than acos(:data:`LOCAL_COS`); each is wound to agree with its corners' normals.
+    Not a watertight mesh, nor meant to be: its triangles lie where the points do, so that
+    :func:`surface_points` can fill the gaps between them (the bare-cloud look of
+    :func:`ipfit.fit_adaptive`).
+
+    Parameters
+    ----------
+    points : (N, 3) array
+    normals : (N, 3) array of unit normals, oriented (a neighbour whose normal points against a
+        point's is taken to be on another sheet).
+
+    Returns
+    -------
+    (F, 3) integer array of vertex indices, possibly empty.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> rng = np.random.default_rng(0)
+    >>> p = rng.normal(size=(400, 3)); p /= np.linalg.norm(p, axis=1, keepdims=True)
+    >>> t = local_triangles(p, p)
+    >>> bool(len(t) > 400), bool(np.abs(np.linalg.norm(surface_points(p, t, p, 500)[0], axis=1) - 1).max() < 0.1)
+    (True, True)
+    """
+    pts = as_points(points, dims=(3,))
+    unit = np.asarray(normals, dtype=np.float64)
+    if unit.shape != pts.shape:
+        raise error("normals", f"shape {pts.shape}, one per point", f"shape {unit.shape}")
+    k = min(LOCAL_NEIGHBOURS, len(pts) - 1)
+    if k < 2:
+        return np.empty((0, 3), dtype=np.int64)
+    distance, near = cKDTree(pts).query(pts, k=k + 1)
+    distance, near = distance[:, 1:], near[:, 1:]
+    spacing = np.median(distance[:, :6], axis=1)
+    found: set[tuple[int, int, int]] = set()
+    for i in range(len(pts)):
+        n = unit[i]
+        offset = pts[near[i]] - pts[i]
+        across = offset @ n
+        along = offset - across[:, None] * n
+        reach = np.linalg.norm(along, axis=1)
+        keep = (unit[near[i]] @ n >= 0) & (np.abs(across) <= 0.5 * reach)
+        if np.count_nonzero(keep) < 2:
+            continue
+        first = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+        u = np.cross(n, first)
+        u /= np.linalg.norm(u)
+        v = np.cross(n, u)
+        flat = np.vstack([[0.0, 0.0], np.column_stack([along[keep] @ u, along[keep] @ v])])
+        try:
+            simplices = Delaunay(flat).simplices if len(flat) > 3 else np.array([[0, 1, 2]])
+        except QhullError:  # the neighbours on one line: no umbrella
+            continue
+        corners = np.concatenate([[i], near[i][keep]])
+        for simplex in simplices[(simplices == 0).any(axis=1)]:
+            found.add(tuple(sorted(int(c) for c in corners[simplex])))  # type: ignore[arg-type]
+    if not found:
+        return np.empty((0, 3), dtype=np.int64)
+    tri = np.array(sorted(found), dtype=np.int64)
+    a, b, c = pts[tri[:, 0]], pts[tri[:, 1]], pts[tri[:, 2]]
+    longest = np.max(np.column_stack([np.linalg.norm(b - a, axis=1), np.linalg.norm(c - b, axis=1),
+                                      np.linalg.norm(a - c, axis=1)]), axis=1)
+    plane, ok = unit_rows_mask(np.cross(b - a, c - a))
+    turn = np.abs(np.einsum("fj,fvj->fv", plane, unit[tri])).min(axis=1)
+    tri = tri[ok & (longest <= LOCAL_EDGE * spacing[tri].max(axis=1)) & (turn >= LOCAL_COS)]
+    a, b, c = pts[tri[:, 0]], pts[tri[:, 1]], pts[tri[:, 2]]
+    inward = np.einsum("fj,fj->f", np.cross(b - a, c - a), unit[tri].sum(axis=1)) < 0
+    tri[inward] = tri[inward][:, [0, 2, 1]]
+    return tri
+
