@@ -74,7 +74,7 @@ class Progress:
             self._degree, self._stage = event["degree"], None
             self._line(f"degree {event['degree']}: measuring on all {event['n_points']:,} points "
                        f"(the degrees were fitted on {event['fit_points']:,} of them spread evenly)")
-        elif kind in ("mesh_points", "weights_variant", "normals_variant", "layers", "reorient"):
+        elif kind in ("mesh_points", "local_surface", "weights_variant", "normals_variant", "layers", "reorient"):
             self._close_bar()
             self._degree, self._stage = None, None
             self._line(event["message"])

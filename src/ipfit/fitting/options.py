@@ -186,7 +186,9 @@ class SearchOptions:
         every degree is measured against, and its few vertices would stop the degrees early and
         leave thin parts with hardly a point. A mesh whose first fit measures poorly (best clean
         F-score below 0.95) is fitted again on its vertices and this many points spread over its
-        faces, kept when it measures better against them (:func:`ipfit.fit_adaptive`, Notes).
+        faces, kept when it measures better against them, and a sparse bare cloud whose fit measures
+        poorly on its points and this many spread over the triangles between them
+        (:func:`ipfit.fit_adaptive`, Notes).
         None: the vertices only (the paper). Measured in docs/mesh-points.md and
         docs/quality-3d.md.
     stall_generations : int, None or "auto", default "auto"
