@@ -328,6 +328,8 @@ def test_every_event_of_a_fit_that_carries_a_message_is_printed():
 
     source = "".join(path.read_text() for path in Path(adaptive.__file__).parent.glob("*.py"))
     kinds = set(re.findall(r'\{"event": "(\w+)", "message"', source))
+    kinds |= set(re.findall(r'_with_spread\([^"]*"(\w+)"', source))  # the looks that spread points announce themselves
+    assert {"mesh_points", "local_surface"} <= kinds
     assert {"mesh_points", "weights_variant", "normals_variant", "layers", "reorient"} <= kinds
     for kind in sorted(kinds):
         stream = io.StringIO()

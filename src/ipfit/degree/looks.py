@@ -147,6 +147,22 @@ def _layered(loop: Loop, cloud: Cloud, unit, noise: float | None, settings: Loop
         cloud, unit
 
 
+def _with_spread(loop: Loop, given: tuple[NDArray, NDArray], spread: tuple[NDArray, NDArray],
+                 faces: NDArray | None, reference: NDArray, event: str, note: str, settings: LoopSettings,
+                 generator, total: list[Loop]) -> tuple[Loop, bool, float, float] | None:
+    """The degree loop run again on the ``given`` points and normals with the ``spread`` ones (its
+    cloud with ``faces``), whether it measures better than ``loop`` against the given points'
+    ``reference`` triangles, and both F-scores there (:func:`_compared`); None when interrupted.
+    The look that spread them (a mesh's faces, a bare cloud's triangles) is announced first."""
+    if settings.progress is not None:
+        settings.progress({"event": event, "message": f"the fit measured poorly: {note}"})
+    points, unit = np.vstack([given[0], spread[0]]), np.vstack([given[1], spread[1]])
+    again = another_loop(Cloud._checked(points, as_normals(unit, points), faces), unit, settings, generator, total)
+    if again is None:
+        return None
+    return again, *_compared(again, loop, Cloud._checked(given[0], None, reference), settings.rule)
+
+
 def _on_surface(loop: Loop, mesh: tuple[NDArray, NDArray, NDArray, int], settings: LoopSettings,
                 generator, total: list[Loop], sampled: tuple[str, ...]) -> tuple[Loop, tuple[str, ...]]:
     """``(loop, sampled)``, or the degree loop run again on the ``mesh``'s vertices and ``most``
@@ -164,14 +180,11 @@ def _on_surface(loop: Loop, mesh: tuple[NDArray, NDArray, NDArray, int], setting
     if not len(extra):
         return loop, sampled
     note = f"fitted on the mesh's {len(vertices):,} vertices and {len(extra):,} points spread over its faces"
-    if settings.progress is not None:
-        settings.progress({"event": "mesh_points", "message": f"the fit measured poorly: {note}"})
-    points, unit = np.vstack([vertices, extra]), np.vstack([normals, extra_normals])
-    again = another_loop(Cloud._checked(points, as_normals(unit, points), faces), unit, settings, generator,
-                          total)
-    if again is None:
+    fitted = _with_spread(loop, (vertices, normals), (extra, extra_normals), faces, faces, "mesh_points", note,
+                          settings, generator, total)
+    if fitted is None:
         return loop, sampled
-    better, new_f, old_f = _compared(again, loop, Cloud._checked(vertices, None, faces), settings.rule)
+    again, better, new_f, old_f = fitted
     if better:
         return (dataclasses.replace(again, notes=loop.notes),
                 (f"{note} (the first fit measured F {old_f:.3f} against the faces, this one {new_f:.3f})",))
@@ -203,14 +216,11 @@ def _on_local_surface(loop: Loop, cloud: Cloud, unit, most: int, settings: LoopS
         return loop
     note = (f"fitted on the {len(points):,} points and {len(extra):,} points spread over the triangles between "
             "neighbouring points")
-    if settings.progress is not None:
-        settings.progress({"event": "local_surface", "message": f"the fit measured poorly: {note}"})
-    both, both_unit = np.vstack([points, extra]), np.vstack([unit, extra_normals])
-    again = another_loop(Cloud._checked(both, as_normals(both_unit, both), None), both_unit, settings, generator,
-                         total)
-    if again is None:
+    fitted = _with_spread(loop, (points, unit), (extra, extra_normals), None, triangles, "local_surface", note,
+                          settings, generator, total)
+    if fitted is None:
         return loop
-    better, new_f, old_f = _compared(again, loop, Cloud._checked(points, None, triangles), settings.rule)
+    again, better, new_f, old_f = fitted
     if better:
         note = f"{note} (the first fit measured F {old_f:.3f} against those triangles, this one {new_f:.3f})"
         return dataclasses.replace(again, notes=(*loop.notes, note))
