@@ -117,4 +117,6 @@ def test_the_recommended_fit_rounds_the_normals_it_estimated_and_no_others(monke
     ipfit.fit_adaptive(points[:, :2] + 0.01 * points[:, 2:], max_degree=2, rng=0)  # 2D
     assert calls == []
     ipfit.fit_adaptive(points, max_degree=2, rng=0)
-    assert calls and set(calls) == {len(points)}
+    # its points, and (a degree-2 fit measures poorly) its points with 2,000 spread between them
+    # by the triangles look (looks._on_local_surface), whose normals are the estimated ones too
+    assert calls and calls[0] == len(points) and set(calls) <= {len(points), len(points) + 2000}
