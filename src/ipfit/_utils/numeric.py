@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["row_norms", "unique_rows", "unit_rows", "unit_rows_mask"]
+__all__ = ["row_norms", "tangent_frames", "unique_rows", "unit_rows", "unit_rows_mask"]
 
 
 def row_norms(v: ArrayLike) -> NDArray[np.float64]:
@@ -68,6 +68,20 @@ def unit_rows(v: ArrayLike) -> NDArray[np.float64]:
     if np.all(np.isfinite(length)) and (length.size == 0 or length.max() < 1e150):
         return a / np.where(length > 0, length, 1.0)
     return unit_rows_mask(a)[0]
+
+
+def tangent_frames(normals: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Two unit vectors per row of 3D unit ``normals`` that span the plane normal to it: the first
+    across the normal and whichever of x or y is farther from it, the second across both.
+
+    >>> e1, e2 = tangent_frames([[0.0, 0.0, 1.0]])
+    >>> e1, e2
+    (array([[0., 1., 0.]]), array([[-1.,  0.,  0.]]))
+    """
+    n = np.asarray(normals, dtype=np.float64)
+    helper = np.where(np.abs(n[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+    e1 = unit_rows(np.cross(n, helper))
+    return e1, np.cross(n, e1)
 
 
 def unique_rows(a: ArrayLike) -> tuple[NDArray, NDArray[np.intp], NDArray[np.intp], NDArray[np.intp]]:

@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import Delaunay, QhullError, cKDTree
 
-from .._utils.numeric import unit_rows_mask
+from .._utils.numeric import tangent_frames, unit_rows_mask
 from .._utils.validation import as_faces, as_points, check_int, check_rng, error
 from ..cloud import Cloud, as_cloud
 
@@ -227,6 +227,7 @@ def local_triangles(points: ArrayLike, normals: ArrayLike) -> NDArray[np.int64]:
     distance, near = cKDTree(pts).query(pts, k=k + 1)
     distance, near = distance[:, 1:], near[:, 1:]
     spacing = np.median(distance[:, :6], axis=1)
+    across_u, across_v = tangent_frames(unit)
     found: set[tuple[int, int, int]] = set()
     for i in range(len(pts)):
         n = unit[i]
@@ -237,11 +238,7 @@ def local_triangles(points: ArrayLike, normals: ArrayLike) -> NDArray[np.int64]:
         keep = (unit[near[i]] @ n >= 0) & (np.abs(across) <= 0.5 * reach)
         if np.count_nonzero(keep) < 2:
             continue
-        first = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-        u = np.cross(n, first)
-        u /= np.linalg.norm(u)
-        v = np.cross(n, u)
-        flat = np.vstack([[0.0, 0.0], np.column_stack([along[keep] @ u, along[keep] @ v])])
+        flat = np.vstack([[0.0, 0.0], np.column_stack([along[keep] @ across_u[i], along[keep] @ across_v[i]])])
         try:
             simplices = Delaunay(flat).simplices if len(flat) > 3 else np.array([[0, 1, 2]])
         except QhullError:  # the neighbours on one line: no umbrella

@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
-from .._utils.numeric import row_norms, unit_rows
+from .._utils.numeric import row_norms, tangent_frames, unit_rows
 from .._utils.validation import as_matching, as_points, as_weights, check_positive, error
 from .local import check_workers, spread
 
@@ -64,9 +64,7 @@ _SAMPLE = 20_000
 def _widest_gaps(sample, normals, idx, dist, within):
     """Per point, the turn (0-1) from the widest angle between its neighbours on its tangent
     plane, and the unit direction bisecting that angle (outward, where the points end)."""
-    helper = np.where(np.abs(normals[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
-    e1 = unit_rows(np.cross(normals, helper))
-    e2 = np.cross(normals, e1)
+    e1, e2 = tangent_frames(normals)
     offset = sample[idx] - sample[:, None, :]
     a, b = np.einsum("ijk,ik->ij", offset, e1), np.einsum("ijk,ik->ij", offset, e2)
     valid = within & (np.hypot(a, b) > _ALONG * np.where(within, dist, 0.0))
